@@ -1,0 +1,463 @@
+"""The batch-first simulator of landmark localization: B robots, B maps, B beliefs.
+
+One step for every member b, as in DESIGN.md:
+
+    controls -> true motion (noise, blocked at walls) -> scan from the true pose
+             -> EKF predict + stacked update (the filter never sees the true pose)
+             -> metrics (entropy, errors) and the observation row
+
+With the numba EKF this is one fused kernel call for the whole batch. With the filterpy
+backend the simulation and observation kernels run around filterpy's predict/update.
+The single env is this core with B = 1; a vector env is the same code with B = n.
+
+Randomness: each member owns a ``numpy.random.Generator`` (the env's ``np_random``). Step noise
+is drawn from it in blocks of :data:`NOISE_BLOCK` steps (motion then measurement normals per
+step) and consumed by the kernel, which is both fast and exactly reproducible.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from active_loc.beliefs.ekf import EKFBelief, ekf_predict, ekf_update
+from active_loc.beliefs.ekf_filterpy import FilterpyEKFBelief
+from active_loc.beliefs.entropy import LOG_2PIE_3, det3
+from active_loc.envs.actions import primitive_controls
+from active_loc.envs.config import LandmarkEnvConfig
+from active_loc.envs.observations import belief_observation_size, write_belief_observation
+from active_loc.envs.rewards import REWARD_CODES, uncertainty_reward
+from active_loc.geometry import wrap_angle_scalar
+from active_loc.maps import LandmarkMap, random_landmark_map
+from active_loc.motion import UnicycleModel, move_within_bounds
+from active_loc.sensors.landmarks import (
+    LandmarkSensor,
+    RangeBearingSensor,
+    RelativePositionSensor,
+    measure_landmarks,
+)
+
+NOISE_BLOCK = 64
+
+TEXTBOOK_LANDMARKS = np.array([[0.0, 0.0], [2.0, 8.0], [8.0, 2.0], [10.0, 10.0]])
+TEXTBOOK_BOUNDS = (-2.0, -2.0, 14.0, 14.0)
+
+# layout of the parameter vector handed to the kernels (one array: fewer kernel arguments
+# make a faster call)
+(
+    P_DT,
+    P_VMIN,
+    P_VMAX,
+    P_OMEGA,
+    P_FOV,
+    P_RANGE,
+    P_SCALE,
+    P_KIND,
+    P_CONTINUOUS,
+    P_REWARD,
+    P_LOC_POS,
+    P_LOC_HEAD,
+    P_TOL_POS,
+    P_TOL_HEAD,
+) = range(14)
+P_Q, P_QROOT, P_R, P_RROOT = 14, 23, 32, 36
+N_PARAMS = 40
+
+# layout of the per-member map box: bounds, walls flag, landmark count
+B_WALLS, B_COUNT = 4, 5
+
+# layout of the per-step metrics row
+(
+    S_ENTROPY,
+    S_LOGDET,
+    S_TRACE,
+    S_POS_ERR,
+    S_HEAD_ERR,
+    S_COLLIDED,
+    S_N_VISIBLE,
+    S_NIS,
+    S_POS_STD,
+    S_HEAD_STD,
+    S_UNCERTAINTY_REWARD,
+    S_LOCALIZED,
+    S_SUCCESS,
+) = range(13)
+N_STATS = 13
+
+
+@dataclass(frozen=True)
+class LandmarkModels:
+    """The models a planner may use: motion, sensor and their shared kernel parameters."""
+
+    motion: UnicycleModel
+    sensor: LandmarkSensor
+    params: NDArray[np.float64]
+    primitives: NDArray[np.float64]
+
+
+def build_models(cfg: LandmarkEnvConfig) -> LandmarkModels:
+    """Motion and sensor models of a config, and the packed parameter vector of the kernels."""
+    motion = UnicycleModel(cfg.dt, np.diag(np.square(cfg.motion_noise_std)))
+    sensor: LandmarkSensor
+    if cfg.sensor == "range_bearing":
+        sensor = RangeBearingSensor.from_std(cfg.range_std, cfg.bearing_std, cfg.fov, cfg.max_range)
+    else:
+        sensor = RelativePositionSensor(cfg.position_std**2 * np.eye(2), cfg.fov, cfg.max_range)
+    params = np.zeros(N_PARAMS)
+    params[P_DT] = cfg.dt
+    params[P_VMIN] = cfg.v_min
+    params[P_VMAX] = cfg.v_max
+    params[P_OMEGA] = cfg.omega_max
+    params[P_FOV] = cfg.fov
+    params[P_RANGE] = cfg.max_range
+    if math.isfinite(cfg.max_range):
+        params[P_SCALE] = cfg.max_range
+    else:
+        width, height = _map_extent(cfg)
+        params[P_SCALE] = math.hypot(width, height)
+    params[P_KIND] = sensor.kind
+    params[P_CONTINUOUS] = 1.0 if cfg.action_type == "continuous" else 0.0
+    params[P_REWARD] = REWARD_CODES[cfg.reward]
+    params[P_LOC_POS] = cfg.localized_position_std
+    params[P_LOC_HEAD] = cfg.localized_heading_std
+    params[P_TOL_POS] = cfg.success_position_tol
+    params[P_TOL_HEAD] = cfg.success_heading_tol
+    params[P_Q : P_Q + 9] = motion.noise_cov.ravel()
+    params[P_QROOT : P_QROOT + 9] = motion.noise_root.ravel()
+    params[P_R : P_R + 4] = sensor.noise_cov.ravel()
+    params[P_RROOT : P_RROOT + 4] = sensor.noise_root.ravel()
+    params.setflags(write=False)
+    primitives = primitive_controls(cfg.v_min, cfg.v_max, cfg.omega_max)
+    return LandmarkModels(motion, sensor, params, primitives)
+
+
+def _map_extent(cfg: LandmarkEnvConfig) -> tuple[float, float]:
+    if isinstance(cfg.map, LandmarkMap):
+        return cfg.map.size
+    if isinstance(cfg.map, str) and cfg.map == "textbook":
+        return TEXTBOOK_BOUNDS[2] - TEXTBOOK_BOUNDS[0], TEXTBOOK_BOUNDS[3] - TEXTBOOK_BOUNDS[1]
+    if isinstance(cfg.map, str):
+        return cfg.map_size
+    return _fixed_map(cfg).size
+
+
+def _fixed_map(cfg: LandmarkEnvConfig) -> LandmarkMap:
+    """The map of a config that does not draw one per episode."""
+    if isinstance(cfg.map, LandmarkMap):
+        return cfg.map
+    if isinstance(cfg.map, str):
+        return LandmarkMap(TEXTBOOK_LANDMARKS, TEXTBOOK_BOUNDS, walls=False)
+    positions = np.asarray(cfg.map, dtype=np.float64)
+    lo, hi = positions.min(axis=0) - 2.0, positions.max(axis=0) + 2.0
+    return LandmarkMap(positions, (lo[0], lo[1], hi[0], hi[1]), walls=False)
+
+
+# --------------------------------------------------------------------------------------------
+# kernels
+
+
+@numba.njit(cache=True)
+def _decode(action: NDArray, params: NDArray) -> tuple[float, float]:
+    """Physical control of one action: continuous actions are clipped to [-1, 1] and scaled;
+    otherwise the action already is the control (V m/s, omega rad/s)."""
+    if params[P_CONTINUOUS] < 0.5:
+        return action[0], action[1]
+    a_v = min(1.0, max(-1.0, action[0]))
+    a_w = min(1.0, max(-1.0, action[1]))
+    v = params[P_VMIN] + 0.5 * (a_v + 1.0) * (params[P_VMAX] - params[P_VMIN])
+    return v, a_w * params[P_OMEGA]
+
+
+@numba.njit(cache=True)
+def _simulate_one(
+    pose: NDArray,
+    v: float,
+    omega: float,
+    noise: NDArray,
+    params: NDArray,
+    landmarks: NDArray,
+    box: NDArray,
+    z: NDArray,
+    visible: NDArray,
+) -> bool:
+    """Move the true robot with noise, then scan; returns whether the move was blocked."""
+    q_root = params[P_QROOT : P_QROOT + 9].reshape(3, 3)
+    eps = np.empty(3)
+    for i in range(3):
+        eps[i] = q_root[i, 0] * noise[0] + q_root[i, 1] * noise[1] + q_root[i, 2] * noise[2]
+    collided = move_within_bounds(pose, v, omega, params[P_DT], eps, box[:4], box[B_WALLS] > 0.5)
+    n = landmarks.shape[0]
+    count = int(box[B_COUNT])
+    valid = np.arange(n) < count
+    measure_landmarks(
+        int(params[P_KIND]), pose, landmarks, valid, params[P_FOV], params[P_RANGE],
+        params[P_RROOT : P_RROOT + 4].reshape(2, 2), noise[3 : 3 + 2 * n].reshape(n, 2),
+        z, visible,
+    )
+    return collided
+
+
+@numba.njit(cache=True)
+def _finish_one(
+    pose: NDArray,
+    mean: NDArray,
+    cov: NDArray,
+    z: NDArray,
+    visible: NDArray,
+    landmarks: NDArray,
+    box: NDArray,
+    params: NDArray,
+    stats: NDArray,
+    obs: NDArray,
+) -> None:
+    """Metrics of the belief (errors against the truth are for info only), the uncertainty
+    reward term against the previous values still in ``stats``, and the observation row."""
+    det = det3(cov)
+    logdet = np.log(det) if det > 0 else -np.inf
+    entropy = 0.5 * (LOG_2PIE_3 + logdet)
+    trace = cov[0, 0] + cov[1, 1] + cov[2, 2]
+    stats[S_UNCERTAINTY_REWARD] = uncertainty_reward(
+        int(params[P_REWARD]), stats[S_ENTROPY], entropy, stats[S_LOGDET], logdet,
+        stats[S_TRACE], trace,
+    )
+    stats[S_ENTROPY] = entropy
+    stats[S_LOGDET] = logdet
+    stats[S_TRACE] = trace
+    pos_err = np.hypot(pose[0] - mean[0], pose[1] - mean[1])
+    head_err = abs(wrap_angle_scalar(pose[2] - mean[2]))
+    stats[S_POS_ERR] = pos_err
+    stats[S_HEAD_ERR] = head_err
+    # largest eigenvalue of the 2x2 position covariance, closed form
+    half_tr = 0.5 * (cov[0, 0] + cov[1, 1])
+    gap = np.sqrt(max(0.25 * (cov[0, 0] - cov[1, 1]) ** 2 + cov[0, 1] ** 2, 0.0))
+    pos_std = np.sqrt(max(half_tr + gap, 0.0))
+    head_std = np.sqrt(max(cov[2, 2], 0.0))
+    stats[S_POS_STD] = pos_std
+    stats[S_HEAD_STD] = head_std
+    localized = pos_std <= params[P_LOC_POS] and head_std <= params[P_LOC_HEAD]
+    success = localized and pos_err <= params[P_TOL_POS] and head_err <= params[P_TOL_HEAD]
+    stats[S_LOCALIZED] = 1.0 if localized else 0.0
+    stats[S_SUCCESS] = 1.0 if success else 0.0
+    count = 0
+    for j in range(visible.shape[0]):
+        if visible[j]:
+            count += 1
+    stats[S_N_VISIBLE] = count
+    n = landmarks.shape[0]
+    valid = np.arange(n) < int(box[B_COUNT])
+    write_belief_observation(
+        mean, cov, entropy, z, visible, landmarks, valid, box, int(params[P_KIND]),
+        params[P_SCALE], obs,
+    )
+
+
+@numba.njit(cache=True)
+def step_batch(
+    actions: NDArray,
+    params: NDArray,
+    noise: NDArray,
+    noise_index: NDArray,
+    pose: NDArray,
+    mean: NDArray,
+    cov: NDArray,
+    landmarks: NDArray,
+    box: NDArray,
+    z: NDArray,
+    visible: NDArray,
+    stats: NDArray,
+    obs: NDArray,
+    run_ekf: bool,
+) -> int:
+    """One step of the whole batch; returns the index of a non-finite action, or -1.
+
+    Args:
+        actions: ``(B, 2)`` continuous actions in [-1, 1] (clipped) or, for discrete action
+            sets, the primitives' physical controls (V m/s, omega rad/s).
+        params: the packed parameter vector of :func:`build_models`.
+        noise: ``(B, NOISE_BLOCK, 3 + 2 N)`` standard normals; noise_index ``(B,)`` the next
+            row of each member, advanced here.
+        pose: ``(B, 3)`` true poses; mean ``(B, 3)``, cov ``(B, 3, 3)`` beliefs.
+        landmarks: ``(B, N, 2)`` (the first ``count`` rows are real); box ``(B, 6)``: bounds,
+            walls flag and landmark count.
+        z: ``(B, N, 2)``, visible ``(B, N)``: out, the scan.
+        stats: ``(B, N_STATS)`` in (previous values) and out; obs: ``(B, D)`` float32 out.
+        run_ekf: run the numba EKF and finish here; False leaves the belief update to the
+            caller, who then calls :func:`finish_batch`.
+    """
+    for b in range(actions.shape[0]):
+        if not (np.isfinite(actions[b, 0]) and np.isfinite(actions[b, 1])):
+            return b
+    r = params[P_R : P_R + 4].reshape(2, 2)
+    q = params[P_Q : P_Q + 9].reshape(3, 3)
+    kind = int(params[P_KIND])
+    for b in range(actions.shape[0]):
+        v, omega = _decode(actions[b], params)
+        row = noise[b, noise_index[b]]
+        noise_index[b] += 1
+        collided = _simulate_one(
+            pose[b], v, omega, row, params, landmarks[b], box[b], z[b], visible[b]
+        )
+        stats[b, S_COLLIDED] = 1.0 if collided else 0.0
+        if run_ekf:
+            # a blocked robot knows it did not advance (bumper, odometry): predict with V = 0
+            ekf_predict(mean[b], cov[b], 0.0 if collided else v, omega, params[P_DT], q)
+            stats[b, S_NIS] = ekf_update(mean[b], cov[b], z[b], visible[b], landmarks[b], kind, r)
+            _finish_one(
+                pose[b], mean[b], cov[b], z[b], visible[b], landmarks[b], box[b], params,
+                stats[b], obs[b],
+            )
+    return -1
+
+
+@numba.njit(cache=True)
+def finish_batch(
+    pose: NDArray,
+    mean: NDArray,
+    cov: NDArray,
+    z: NDArray,
+    visible: NDArray,
+    landmarks: NDArray,
+    box: NDArray,
+    params: NDArray,
+    stats: NDArray,
+    obs: NDArray,
+) -> None:
+    """Metrics and observations of the whole batch (after an external belief update)."""
+    for b in range(pose.shape[0]):
+        _finish_one(
+            pose[b], mean[b], cov[b], z[b], visible[b], landmarks[b], box[b], params,
+            stats[b], obs[b],
+        )
+
+
+def executed_controls(actions: NDArray, params: NDArray, collided: NDArray) -> NDArray:
+    """Physical controls ``(B, 2)`` the filter predicts with, as :func:`step_batch` does."""
+    out = np.empty((actions.shape[0], 2))
+    for b in range(actions.shape[0]):
+        v, omega = _decode(actions[b], params)
+        out[b] = (0.0 if collided[b] else v), omega
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# the holder
+
+
+class LandmarkCore:
+    """State arrays of B landmark-localization episodes and the calls that advance them.
+
+    Args:
+        config: the task.
+        batch_size: B.
+    """
+
+    def __init__(self, config: LandmarkEnvConfig, batch_size: int = 1) -> None:
+        if config.ekf_backend == "filterpy" and batch_size != 1:
+            raise ValueError("ekf_backend='filterpy' runs single envs only (batch size 1)")
+        self.config = config
+        self.models = build_models(config)
+        self.batch_size = batch_size
+        n = config.max_landmarks
+        self.fixed_map = None if config.map == "random" else _fixed_map(config)
+        if self.fixed_map is not None and self.fixed_map.n_landmarks > n:
+            raise ValueError(
+                f"the map has {self.fixed_map.n_landmarks} landmarks but max_landmarks={n}; "
+                "raise max_landmarks"
+            )
+        self.maps: list[LandmarkMap | None] = [None] * batch_size
+        self.pose = np.zeros((batch_size, 3))
+        self.landmarks = np.zeros((batch_size, n, 2))
+        self.box = np.zeros((batch_size, 6))
+        self.z = np.zeros((batch_size, n, 2))
+        self.visible = np.zeros((batch_size, n), dtype=np.bool_)
+        self.stats = np.zeros((batch_size, N_STATS))
+        self.obs = np.zeros((batch_size, belief_observation_size(n)), dtype=np.float32)
+        self.noise = np.zeros((batch_size, NOISE_BLOCK, 3 + 2 * n))
+        self.noise_index = np.full(batch_size, NOISE_BLOCK, dtype=np.int64)
+        mean0 = np.zeros((batch_size, 3))
+        cov0 = np.broadcast_to(np.diag(np.square(config.initial_belief_std)), (batch_size, 3, 3))
+        self.belief: EKFBelief | FilterpyEKFBelief
+        if config.ekf_backend == "filterpy":
+            self.belief = FilterpyEKFBelief(mean0, cov0, self.models.motion, self.models.sensor)
+        else:
+            self.belief = EKFBelief(mean0, cov0, self.models.motion, self.models.sensor)
+
+    # -- reset ---------------------------------------------------------------------------------
+
+    def reset_member(self, b: int, rng: np.random.Generator) -> None:
+        """New episode for member ``b``: map, true start, initial belief; no scan yet."""
+        cfg = self.config
+        if self.fixed_map is None:
+            lmap = random_landmark_map(rng, cfg.map_size, cfg.n_landmarks)
+        else:
+            lmap = self.fixed_map
+        self.maps[b] = lmap
+        n = lmap.n_landmarks
+        self.landmarks[b] = 0.0
+        self.landmarks[b, :n] = lmap.positions
+        self.box[b, :4] = lmap.bounds
+        self.box[b, B_WALLS] = 1.0 if lmap.walls else 0.0
+        self.box[b, B_COUNT] = n
+        if cfg.start == "random":
+            x_min, y_min, x_max, y_max = lmap.bounds
+            margin = min(1.0, 0.25 * (x_max - x_min), 0.25 * (y_max - y_min))
+            xy = rng.uniform((x_min + margin, y_min + margin), (x_max - margin, y_max - margin))
+            self.pose[b] = xy[0], xy[1], rng.uniform(-np.pi, np.pi)
+        else:
+            self.pose[b] = cfg.start_pose
+        error = rng.standard_normal(3) * np.asarray(cfg.initial_error_std)
+        mean = self.pose[b] + error
+        mean[2] = wrap_angle_scalar(mean[2])
+        if isinstance(self.belief, FilterpyEKFBelief):
+            self.belief = FilterpyEKFBelief(
+                mean, np.diag(np.square(cfg.initial_belief_std)), self.models.motion,
+                self.models.sensor,
+            )
+        else:
+            self.belief.mean[b] = mean
+            self.belief.cov[b] = np.diag(np.square(cfg.initial_belief_std))
+        self.z[b] = 0.0
+        self.visible[b] = False
+        self.noise_index[b] = NOISE_BLOCK
+        self.stats[b] = 0.0
+        finish_batch(
+            self.pose[b : b + 1], self.belief.mean[b : b + 1], self.belief.cov[b : b + 1],
+            self.z[b : b + 1], self.visible[b : b + 1], self.landmarks[b : b + 1],
+            self.box[b : b + 1], self.models.params, self.stats[b : b + 1], self.obs[b : b + 1],
+        )
+        self.stats[b, S_UNCERTAINTY_REWARD] = 0.0
+
+    # -- step ----------------------------------------------------------------------------------
+
+    def refill_noise(self, b: int, rng: np.random.Generator) -> None:
+        """Draw the next block of step noise of member ``b`` from its Generator."""
+        self.noise[b] = rng.standard_normal(self.noise.shape[1:])
+        self.noise_index[b] = 0
+
+    def step(self, actions: NDArray[np.float64]) -> int:
+        """Advance every member; ``actions`` ``(B, 2)`` float64 as :func:`step_batch` takes.
+
+        Noise blocks must have been refilled where exhausted. Returns -1, or the index of a
+        member whose action was not finite (nothing was advanced then).
+        """
+        fused = not isinstance(self.belief, FilterpyEKFBelief)
+        bad = step_batch(
+            actions, self.models.params, self.noise, self.noise_index, self.pose,
+            self.belief.mean, self.belief.cov, self.landmarks, self.box, self.z, self.visible,
+            self.stats, self.obs, fused,
+        )
+        if bad >= 0 or fused:
+            return bad
+        collided = self.stats[:, S_COLLIDED] > 0.5
+        self.belief.predict(executed_controls(actions, self.models.params, collided))
+        self.belief.update(self.z, self.visible, self.landmarks)
+        self.stats[:, S_NIS] = self.belief.last_nis
+        finish_batch(
+            self.pose, self.belief.mean, self.belief.cov, self.z, self.visible, self.landmarks,
+            self.box, self.models.params, self.stats, self.obs,
+        )
+        return -1

@@ -1,0 +1,281 @@
+"""``ActiveLocalizationEnv``: a robot in a known landmark map localizes itself with an EKF."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from numpy.typing import NDArray
+
+from active_loc.envs.actions import action_space
+from active_loc.envs.config import LandmarkEnvConfig
+from active_loc.envs.landmark_core import (
+    NOISE_BLOCK,
+    S_COLLIDED,
+    S_ENTROPY,
+    S_HEAD_ERR,
+    S_LOCALIZED,
+    S_N_VISIBLE,
+    S_NIS,
+    S_POS_ERR,
+    S_SUCCESS,
+    S_UNCERTAINTY_REWARD,
+    LandmarkCore,
+)
+from active_loc.envs.observations import belief_observation_space
+from active_loc.envs.planner_view import PlannerView
+from active_loc.scenarios import scenario_kwargs
+
+
+class ActiveLocalizationEnv(gym.Env):
+    """Active localization in a landmark map with an EKF belief.
+
+    ## Description
+
+    A unicycle robot moves with noisy controls in a map of point landmarks it knows. It does
+    not know its own pose exactly: the env keeps its belief with an EKF (the chapter's
+    Algorithm 2) fed by the robot's own sensor, and rewards the agent for information gain, the
+    drop in the belief's entropy. The sensor sees only landmarks inside its field of view and
+    range, so the actions decide what the robot learns.
+
+    ## Action Space
+
+    ``action_type="continuous"``: ``Box(-1, 1, (2,), float32)``
+
+    | index | action              | maps linearly to                        |
+    |-------|---------------------|-----------------------------------------|
+    | 0     | forward speed       | ``V in [v_min, v_max]`` (m/s)           |
+    | 1     | turn rate           | ``omega in [-omega_max, omega_max]`` (rad/s) |
+
+    Values outside [-1, 1] are clipped; NaN or inf raises ``ValueError``. Float64 actions are
+    used at full precision. ``action_type="discrete"``: ``Discrete(6)``, the primitives stay,
+    forward, forward-left, forward-right, turn left, turn right
+    (:data:`active_loc.envs.actions.PRIMITIVES`).
+
+    ## Observation Space
+
+    ``observation="belief"``: ``Box(-1, 1, (11 + 6 * max_landmarks,), float32)``: the belief
+    mean, heading, log standard deviations, correlations and entropy, then per landmark slot its
+    position relative to the belief mean and this step's measurement with a visibility flag
+    (layout in :mod:`active_loc.envs.observations`). Built from the belief only.
+
+    ## Rewards
+
+    ``reward="info_gain"``: ``H(b_{t-1}) - H(b_t)`` (nats) ``- step_cost``
+    ``- collision_penalty`` on a blocked move; also ``"neg_entropy"``, ``"logdet"``,
+    ``"trace"`` (:mod:`active_loc.envs.rewards`). ``info["reward_terms"]`` names every term.
+
+    ## Starting State
+
+    Random map (or the scenario's), true pose uniform in the map with any heading (or fixed),
+    belief mean = true pose + N(0, diag(initial_error_std^2)), covariance
+    diag(initial_belief_std^2). No measurement has been taken at reset.
+
+    ## Episode End
+
+    Terminated when the belief is confident (largest position std below
+    ``localized_position_std`` and heading std below ``localized_heading_std``) unless
+    ``terminate_when_localized=False``; truncated by ``max_episode_steps`` of the registration.
+
+    ## Info
+
+    Every step: ``pose_error`` (m), ``heading_error`` (rad), ``entropy`` (nats),
+    ``localized`` (confident), ``is_success`` (confident and within ``success_position_tol``
+    and ``success_heading_tol`` of the truth), ``collisions`` (this episode so far),
+    ``reward_terms``, ``n_visible``, ``nis`` (normalized innovation squared of the update).
+    Errors use the true pose: they are for evaluation, never seen by the agent.
+
+    ## Arguments
+
+    ``gymnasium.make("ActiveLoc/LandmarkEKF-v0", render_mode=None, **kwargs)`` where kwargs are
+    fields of :class:`active_loc.envs.config.LandmarkEnvConfig` (``belief``, ``map``,
+    ``action_type``, ``observation``, ``reward``, noise levels, thresholds, ...).
+    """
+
+    metadata: dict[str, Any] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}  # noqa: RUF012
+
+    def __init__(
+        self,
+        scenario: str = "landmark_tracking",
+        render_mode: str | None = None,
+        **kwargs: Any,
+    ) -> None:
+        unknown = set(kwargs) - set(LandmarkEnvConfig.field_names())
+        if unknown:
+            raise TypeError(
+                f"unknown env kwargs {sorted(unknown)}; valid ones are the fields of "
+                "LandmarkEnvConfig"
+            )
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode={render_mode!r} is not one of {self.metadata['render_modes']}"
+            )
+        self.scenario = scenario
+        self.config = LandmarkEnvConfig(**{**scenario_kwargs(scenario), **kwargs})
+        self.render_mode = render_mode
+        self.core = LandmarkCore(self.config, batch_size=1)
+        self.action_space = action_space(self.config.action_type)
+        self.observation_space = belief_observation_space(self.config.max_landmarks)
+        self._continuous = self.config.action_type == "continuous"
+        self._action = np.zeros((1, 2))
+        self._n_actions = len(self.core.models.primitives)
+        # config values read on every step, as plain attributes
+        self._reward_name = self.config.reward
+        self._step_cost = float(self.config.step_cost)
+        self._collision_penalty = float(self.config.collision_penalty)
+        self._terminate_when_localized = bool(self.config.terminate_when_localized)
+        self._steps = 0
+        self._collisions = 0
+        self._renderer: Any = None
+        self._true_path: list[NDArray[np.float64]] = []
+        self._belief_path: list[NDArray[np.float64]] = []
+        self._has_reset = False
+
+    # -- gymnasium API ----------------------------------------------------------------------
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        super().reset(seed=seed)
+        self.core.reset_member(0, self.np_random)
+        self._steps = 0
+        self._collisions = 0
+        self._has_reset = True
+        if self.render_mode is not None:
+            self._true_path = [self.core.pose[0, :2].copy()]
+            self._belief_path = [self.core.belief.mean[0, :2].copy()]
+        info = self._info(self.core.stats[0].tolist())
+        if self.render_mode == "human":
+            self.render()
+        return self.core.obs[0].copy(), info
+
+    def step(
+        self, action: Any
+    ) -> tuple[NDArray[np.float32], float, bool, bool, dict[str, Any]]:
+        if not self._has_reset:
+            raise RuntimeError("call reset() before step()")
+        self._write_action(action)
+        core = self.core
+        if core.noise_index[0] >= NOISE_BLOCK:
+            core.refill_noise(0, self.np_random)
+        if core.step(self._action) >= 0:
+            raise ValueError(f"action contains NaN or inf: {action!r}")
+        self._steps += 1
+        stats = core.stats[0].tolist()
+        self._collisions += stats[S_COLLIDED] > 0.5
+        info = self._info(stats)
+        reward = sum(info["reward_terms"].values())
+        terminated = self._terminate_when_localized and info["localized"]
+        if self.render_mode is not None:
+            self._true_path.append(core.pose[0, :2].copy())
+            self._belief_path.append(core.belief.mean[0, :2].copy())
+            if self.render_mode == "human":
+                self.render()
+        return core.obs[0].copy(), reward, terminated, False, info
+
+    def render(self) -> NDArray[np.uint8] | None:
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode= to make()")
+            return None
+        if not self._has_reset:
+            raise RuntimeError("call reset() before render()")
+        if self._renderer is None:
+            from active_loc.envs.rendering import LandmarkRenderer
+
+            self._renderer = LandmarkRenderer()
+        frame = self._frame()
+        if self.render_mode == "rgb_array":
+            return self._renderer.render_rgb(frame)
+        self._renderer.show(frame)
+        return None
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # -- planners ---------------------------------------------------------------------------
+
+    def planner_view(self) -> PlannerView:
+        """A copy of the belief, the map, the models and the action set; never the true pose."""
+        if not self._has_reset:
+            raise RuntimeError("call reset() before planner_view()")
+        lmap = self.core.maps[0]
+        assert lmap is not None
+        return PlannerView(
+            belief=self.core.belief.copy(),
+            map=lmap,
+            motion=self.core.models.motion,
+            sensor=self.core.models.sensor,
+            action_space=self.action_space,
+            controls=self.core.models.primitives.copy(),
+            config=self.config,
+            step=self._steps,
+        )
+
+    # -- helpers ----------------------------------------------------------------------------
+
+    def _write_action(self, action: Any) -> None:
+        """Validate an action and write its kernel form into ``self._action``."""
+        if self._continuous:
+            shape = getattr(action, "shape", None)
+            if shape is None:
+                action = np.asarray(action, dtype=np.float64)
+                shape = action.shape
+            if shape != (2,):
+                raise ValueError(
+                    f"action must have shape (2,) for action_type='continuous', got {shape}"
+                )
+            self._action[0] = action
+            return
+        if np.ndim(action) != 0:
+            raise ValueError(
+                f"action must be a scalar index for action_type='discrete', got shape "
+                f"{np.shape(action)}"
+            )
+        value = float(action)
+        if not (value.is_integer() and 0 <= value < self._n_actions):
+            raise ValueError(f"action must be an integer in [0, {self._n_actions}), got {action!r}")
+        self._action[0] = self.core.models.primitives[int(value)]
+
+    def _info(self, stats: list[float]) -> dict[str, Any]:
+        collided = stats[S_COLLIDED] > 0.5
+        return {
+            "pose_error": stats[S_POS_ERR],
+            "heading_error": stats[S_HEAD_ERR],
+            "entropy": stats[S_ENTROPY],
+            "localized": stats[S_LOCALIZED] > 0.5,
+            "is_success": stats[S_SUCCESS] > 0.5,
+            "collisions": self._collisions,
+            "reward_terms": {
+                self._reward_name: stats[S_UNCERTAINTY_REWARD],
+                "step_cost": -self._step_cost,
+                "collision": -self._collision_penalty if collided else 0.0,
+            },
+            "n_visible": int(stats[S_N_VISIBLE]),
+            "nis": stats[S_NIS],
+        }
+
+    def _frame(self) -> Any:
+        from active_loc.envs.rendering import LandmarkFrame
+
+        core = self.core
+        lmap = core.maps[0]
+        assert lmap is not None
+        n = lmap.n_landmarks
+        return LandmarkFrame(
+            bounds=lmap.bounds,
+            landmarks=lmap.positions,
+            visible=core.visible[0, :n].copy(),
+            true_pose=core.pose[0].copy(),
+            mean=core.belief.mean[0].copy(),
+            cov=core.belief.cov[0].copy(),
+            true_path=np.array(self._true_path),
+            belief_path=np.array(self._belief_path),
+            fov=self.config.fov,
+            max_range=self.config.max_range,
+            step=self._steps,
+            entropy=float(core.stats[0, S_ENTROPY]),
+            title=self.spec.id if self.spec is not None else type(self).__name__,
+        )

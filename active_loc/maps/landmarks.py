@@ -1,0 +1,105 @@
+"""Feature maps of point landmarks."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+@dataclass(frozen=True)
+class LandmarkMap:
+    """Point landmarks in a rectangular workspace.
+
+    Attributes:
+        positions: ``(N, 2)`` landmark positions in the map frame (m); N >= 1.
+        bounds: ``(x_min, y_min, x_max, y_max)`` of the workspace (m). Observations are
+            normalized by it and, when ``walls`` is set, the robot cannot leave it.
+        walls: whether the workspace border blocks motion (a blocked move is a collision).
+    """
+
+    positions: NDArray[np.float64]
+    bounds: tuple[float, float, float, float]
+    walls: bool = True
+
+    def __post_init__(self) -> None:
+        positions = np.array(self.positions, dtype=np.float64)
+        if positions.ndim != 2 or positions.shape[1] != 2:
+            raise ValueError(f"LandmarkMap.positions must have shape (N, 2), got {positions.shape}")
+        if positions.shape[0] == 0:
+            raise ValueError("LandmarkMap.positions is empty: a landmark map needs >= 1 landmark")
+        if not np.all(np.isfinite(positions)):
+            raise ValueError("LandmarkMap.positions contains NaN or inf")
+        x_min, y_min, x_max, y_max = (float(b) for b in self.bounds)
+        if not (x_max > x_min and y_max > y_min):
+            raise ValueError(
+                f"LandmarkMap.bounds must be (x_min, y_min, x_max, y_max) with max > min, "
+                f"got {self.bounds}"
+            )
+        positions.setflags(write=False)
+        object.__setattr__(self, "positions", positions)
+        object.__setattr__(self, "bounds", (x_min, y_min, x_max, y_max))
+
+    @property
+    def n_landmarks(self) -> int:
+        return int(self.positions.shape[0])
+
+    @property
+    def size(self) -> tuple[float, float]:
+        """Workspace width and height (m)."""
+        return self.bounds[2] - self.bounds[0], self.bounds[3] - self.bounds[1]
+
+    def contains(self, points: ArrayLike, margin: float = 0.0) -> NDArray[np.bool_]:
+        """Whether world points ``(..., 2)`` lie inside the bounds shrunk by ``margin`` (m)."""
+        points = np.asarray(points, dtype=np.float64)
+        x_min, y_min, x_max, y_max = self.bounds
+        return (
+            (points[..., 0] >= x_min + margin)
+            & (points[..., 0] <= x_max - margin)
+            & (points[..., 1] >= y_min + margin)
+            & (points[..., 1] <= y_max - margin)
+        )
+
+
+def random_landmark_map(
+    rng: np.random.Generator,
+    size: tuple[float, float] = (20.0, 20.0),
+    n_landmarks: int | tuple[int, int] = (8, 15),
+    min_separation: float = 1.5,
+    margin: float = 1.0,
+    walls: bool = True,
+) -> LandmarkMap:
+    """Draw a landmark map with the given Generator.
+
+    Landmarks are placed uniformly in ``[margin, size - margin]`` by rejection so that no two are
+    closer than ``min_separation`` (m); the count is fixed or drawn from the inclusive range.
+    The map spans ``(0, 0)`` to ``size``.
+    """
+    width, height = (float(s) for s in size)
+    if width <= 2 * margin or height <= 2 * margin:
+        raise ValueError(f"random_landmark_map: size {size} leaves no room inside margin {margin}")
+    if isinstance(n_landmarks, tuple):
+        low, high = n_landmarks
+        if not 1 <= low <= high:
+            raise ValueError(
+                f"random_landmark_map: n_landmarks range must be 1 <= lo <= hi, got {n_landmarks}"
+            )
+        count = int(rng.integers(low, high + 1))
+    else:
+        count = int(n_landmarks)
+        if count < 1:
+            raise ValueError(f"random_landmark_map: n_landmarks must be >= 1, got {count}")
+    points: list[NDArray[np.float64]] = []
+    for _ in range(100 * count):
+        if len(points) == count:
+            break
+        candidate = rng.uniform((margin, margin), (width - margin, height - margin))
+        if all(np.hypot(*(candidate - p)) >= min_separation for p in points):
+            points.append(candidate)
+    if len(points) < count:
+        raise ValueError(
+            f"random_landmark_map: could not place {count} landmarks {min_separation} m apart "
+            f"in {size}"
+        )
+    return LandmarkMap(np.array(points), (0.0, 0.0, width, height), walls=walls)

@@ -1,0 +1,53 @@
+"""The taxonomy of the chapter as presets: keyword overrides of the env configuration.
+
+Each scenario is a dict of :class:`active_loc.envs.config.LandmarkEnvConfig` fields; the env
+ids are registered with one of them, and ``gymnasium.make(id, **kwargs)`` overrides any field.
+"""
+
+from __future__ import annotations
+
+import math
+from types import MappingProxyType
+from typing import Any
+
+#: Section 13.8, problem 1, exactly: four landmarks, relative-position measurements of all of
+#: them with R = 0.25 I, dt = 0.1, Q = 0.1 dt^2 I, true start (1, 1, 0), initial belief mean =
+#: start + N(0, 0.1 I) with covariance I, 150 steps without early termination. The action range
+#: puts the exercise's controls (V = 1, omega = sin(k dt)) inside [-1, 1].
+TEXTBOOK: MappingProxyType[str, Any] = MappingProxyType(
+    {
+        "map": "textbook",
+        "max_landmarks": 4,
+        "n_landmarks": (4, 4),
+        "dt": 0.1,
+        "motion_noise_std": (math.sqrt(0.1) * 0.1,) * 3,
+        "v_min": 0.0,
+        "v_max": 2.0,
+        "omega_max": 1.0,
+        "start": "fixed",
+        "start_pose": (1.0, 1.0, 0.0),
+        "sensor": "relative_position",
+        "position_std": 0.5,
+        "fov": 2 * math.pi,
+        "max_range": math.inf,
+        "initial_error_std": (math.sqrt(0.1),) * 3,
+        "initial_belief_std": (1.0, 1.0, 1.0),
+        "terminate_when_localized": False,
+        "collision_penalty": 0.0,
+    }
+)
+
+#: Pose tracking in a random 20 m x 20 m map of 8 to 15 landmarks with a range-bearing sensor
+#: of 90 degrees and 6 m: where the robot looks decides what it learns.
+LANDMARK_TRACKING: MappingProxyType[str, Any] = MappingProxyType({})
+
+SCENARIOS: MappingProxyType[str, MappingProxyType[str, Any]] = MappingProxyType(
+    {"textbook": TEXTBOOK, "landmark_tracking": LANDMARK_TRACKING}
+)
+
+
+def scenario_kwargs(name: str) -> dict[str, Any]:
+    """The config overrides of a named scenario."""
+    if name not in SCENARIOS:
+        raise ValueError(f"scenario={name!r} is not one of {tuple(SCENARIOS)}")
+    return dict(SCENARIOS[name])

@@ -21,17 +21,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from active_loc.beliefs.entropy import gaussian_entropy
 from active_loc.geometry import wrap_angle_scalar
-from active_loc.motion import UnicycleModel, unicycle_jacobian, unicycle_mean
+from active_loc.motion import UnicycleModel, unicycle_mean
 from active_loc.sensors.landmarks import RANGE_BEARING, LandmarkSensor, expected_measurement
-
-
-@numba.njit(cache=True)
-def _symmetrize3(a: NDArray) -> None:
-    for i in range(3):
-        for j in range(i + 1, 3):
-            m = 0.5 * (a[i, j] + a[j, i])
-            a[i, j] = m
-            a[j, i] = m
 
 
 @numba.njit(cache=True)
@@ -44,60 +35,30 @@ def ekf_predict(
         mu: ``(3,)`` mean; cov: ``(3, 3)`` covariance; noise_cov: ``(3, 3)`` Q.
         v, omega: control (m/s, rad/s); dt: time step (s).
     """
-    jac = np.empty((3, 3))
-    unicycle_jacobian(mu[2], v, dt, jac)
+    # F = I + e_02 f0 + e_12 f1 (unicycle_jacobian), so F Sigma F^T in closed form
+    f0 = -v * np.sin(mu[2]) * dt
+    f1 = v * np.cos(mu[2]) * dt
     unicycle_mean(mu, v, omega, dt, mu)
-    tmp = np.zeros((3, 3))
-    for i in range(3):
-        for k in range(3):
-            for j in range(3):
-                tmp[i, j] += jac[i, k] * cov[k, j]
-    for i in range(3):
-        for j in range(3):
-            acc = noise_cov[i, j]
-            for k in range(3):
-                acc += tmp[i, k] * jac[j, k]
-            cov[i, j] = acc
-    _symmetrize3(cov)
-
-
-@numba.njit(cache=True)
-def _cholesky(a: NDArray) -> NDArray:
-    """Lower Cholesky factor of a symmetric positive definite matrix ``(d, d)``."""
-    d = a.shape[0]
-    low = np.zeros((d, d))
-    for j in range(d):
-        acc = a[j, j]
-        for k in range(j):
-            acc -= low[j, k] * low[j, k]
-        if not acc > 0.0:
-            raise ValueError("EKF innovation covariance S is not positive definite")
-        low[j, j] = np.sqrt(acc)
-        for i in range(j + 1, d):
-            acc = a[i, j]
-            for k in range(j):
-                acc -= low[i, k] * low[j, k]
-            low[i, j] = acc / low[j, j]
-    return low
-
-
-@numba.njit(cache=True)
-def _cholesky_solve(low: NDArray, b: NDArray) -> NDArray:
-    """Solve ``(L L^T) x = b`` for ``b`` of shape ``(d, m)``."""
-    d, m = b.shape
-    x = b.copy()
-    for c in range(m):
-        for i in range(d):
-            acc = x[i, c]
-            for k in range(i):
-                acc -= low[i, k] * x[k, c]
-            x[i, c] = acc / low[i, i]
-        for i in range(d - 1, -1, -1):
-            acc = x[i, c]
-            for k in range(i + 1, d):
-                acc -= low[k, i] * x[k, c]
-            x[i, c] = acc / low[i, i]
-    return x
+    c02, c12, c22 = cov[0, 2], cov[1, 2], cov[2, 2]
+    # rows of F Sigma
+    r00 = cov[0, 0] + f0 * c02
+    r01 = cov[0, 1] + f0 * c12
+    r11 = cov[1, 1] + f1 * c12
+    r10 = cov[1, 0] + f1 * c02
+    p02 = c02 + f0 * c22
+    p12 = c12 + f1 * c22
+    p00 = r00 + p02 * f0
+    p11 = r11 + p12 * f1
+    p01 = 0.5 * ((r01 + p02 * f1) + (r10 + p12 * f0))
+    cov[0, 0] = p00 + noise_cov[0, 0]
+    cov[1, 1] = p11 + noise_cov[1, 1]
+    cov[2, 2] = c22 + noise_cov[2, 2]
+    cov[0, 1] = p01 + 0.5 * (noise_cov[0, 1] + noise_cov[1, 0])
+    cov[1, 0] = cov[0, 1]
+    cov[0, 2] = p02 + 0.5 * (noise_cov[0, 2] + noise_cov[2, 0])
+    cov[2, 0] = cov[0, 2]
+    cov[1, 2] = p12 + 0.5 * (noise_cov[1, 2] + noise_cov[2, 1])
+    cov[2, 1] = cov[1, 2]
 
 
 @numba.njit(cache=True)
@@ -112,94 +73,92 @@ def ekf_update(
 ) -> float:
     """Stacked correction in place with every visible landmark.
 
+    Every Jacobian H_j and prediction h(mu_bar, m_j) is taken at the predicted mean mu_bar, as
+    in one update with the stacked z, H and block-diagonal R. Because R is block diagonal, that
+    stacked update factors exactly into one 2-D update per landmark (block elimination of S),
+    provided each later innovation is shifted by the mean change so far,
+    ``nu_j = z_j - h(mu_bar, m_j) - H_j (mu - mu_bar)``. This computes the stacked result
+    (equal to filterpy's stacked update to rounding) with 2 x 2 solves only and no
+    ``2m x 2m`` matrix.
+
     Args:
-        mu: ``(3,)`` mean; cov: ``(3, 3)`` covariance.
+        mu: ``(3,)`` mean; cov: ``(3, 3)`` covariance; both updated in place.
         z: ``(N, 2)`` measurements; visible: ``(N,)`` mask; landmarks: ``(N, 2)`` (m).
         kind: sensor kind (``RELATIVE_POSITION`` or ``RANGE_BEARING``).
-        noise_cov: ``(2, 2)`` R of one landmark measurement.
+        noise_cov: ``(2, 2)`` R of one landmark measurement, positive definite.
 
     Returns:
-        The normalized innovation squared ``nu^T S^-1 nu`` (0 when nothing is visible).
+        The normalized innovation squared of the stacked update, ``nu^T S^-1 nu`` (the sum of
+        the per-block terms); 0 when nothing is visible.
     """
-    n = landmarks.shape[0]
-    m = 0
-    for j in range(n):
-        if visible[j]:
-            m += 1
-    if m == 0:
-        return 0.0
-    d = 2 * m
-    jac = np.empty((d, 3))
-    nu = np.empty(d)
-    zhat = np.empty(2)
-    row = 0
-    for j in range(n):
+    # scratch rows: 0-1 H_j (2, 3); 2-3 K_j^T (2, 3); 4-6 A = I - K H; 7-9 A Sigma; 10 zhat
+    work = np.empty((11, 3))
+    jac = work[0:2]
+    gain_t = work[2:4]
+    a_mat = work[4:7]
+    a_cov = work[7:10]
+    zhat = work[10]
+    bar0, bar1, bar2 = mu[0], mu[1], mu[2]
+    r00, r01, r11 = noise_cov[0, 0], 0.5 * (noise_cov[0, 1] + noise_cov[1, 0]), noise_cov[1, 1]
+    nis = 0.0
+    for j in range(landmarks.shape[0]):
         if not visible[j]:
             continue
-        expected_measurement(kind, mu, landmarks[j], zhat, jac[row : row + 2])
-        nu[row] = z[j, 0] - zhat[0]
-        nu[row + 1] = z[j, 1] - zhat[1]
+        # linearize at the predicted mean (not the partially updated one): stacked semantics
+        mu[0], mu[1], mu[2], bar0, bar1, bar2 = bar0, bar1, bar2, mu[0], mu[1], mu[2]
+        expected_measurement(kind, mu, landmarks[j], zhat, jac)
+        mu[0], mu[1], mu[2], bar0, bar1, bar2 = bar0, bar1, bar2, mu[0], mu[1], mu[2]
+        d0, d1, d2 = mu[0] - bar0, mu[1] - bar1, wrap_angle_scalar(mu[2] - bar2)
+        nu0 = z[j, 0] - zhat[0]
+        nu1 = z[j, 1] - zhat[1]
         if kind == RANGE_BEARING:
-            nu[row + 1] = wrap_angle_scalar(nu[row + 1])
-        row += 2
-    # H Sigma, (d, 3); S = H Sigma H^T + R_blk, (d, d)
-    h_cov = np.zeros((d, 3))
-    for i in range(d):
-        for k in range(3):
-            for j in range(3):
-                h_cov[i, j] += jac[i, k] * cov[k, j]
-    s = np.zeros((d, d))
-    for i in range(d):
-        for j in range(d):
-            acc = 0.0
-            for k in range(3):
-                acc += h_cov[i, k] * jac[j, k]
-            s[i, j] = acc
-    for blk in range(m):
-        for a in range(2):
-            for b in range(2):
-                s[2 * blk + a, 2 * blk + b] += noise_cov[a, b]
-    low = _cholesky(s)
-    # K^T = S^-1 H Sigma, (d, 3)
-    gain_t = _cholesky_solve(low, h_cov)
-    white = _cholesky_solve(low, nu.reshape(d, 1))
-    nis = 0.0
-    for i in range(d):
-        nis += nu[i] * white[i, 0]
-    for i in range(3):
-        acc = 0.0
-        for k in range(d):
-            acc += gain_t[k, i] * nu[k]
-        mu[i] += acc
+            nu1 = wrap_angle_scalar(nu1)
+        nu0 -= jac[0, 0] * d0 + jac[0, 1] * d1 + jac[0, 2] * d2
+        nu1 -= jac[1, 0] * d0 + jac[1, 1] * d1 + jac[1, 2] * d2
+        # H Sigma (2, 3) into gain_t, then S = H Sigma H^T + R (2 x 2)
+        for r in range(2):
+            for c in range(3):
+                gain_t[r, c] = jac[r, 0] * cov[0, c] + jac[r, 1] * cov[1, c] + jac[r, 2] * cov[2, c]
+        s00 = gain_t[0, 0] * jac[0, 0] + gain_t[0, 1] * jac[0, 1] + gain_t[0, 2] * jac[0, 2] + r00
+        s10 = gain_t[1, 0] * jac[0, 0] + gain_t[1, 1] * jac[0, 1] + gain_t[1, 2] * jac[0, 2] + r01
+        s11 = gain_t[1, 0] * jac[1, 0] + gain_t[1, 1] * jac[1, 1] + gain_t[1, 2] * jac[1, 2] + r11
+        # Cholesky S = L L^T, then K^T = S^-1 (H Sigma) and S^-1 nu by two triangular solves
+        if not s00 > 0.0:
+            raise ValueError("EKF innovation covariance S is not positive definite")
+        l00 = np.sqrt(s00)
+        l10 = s10 / l00
+        l11_sq = s11 - l10 * l10
+        if not l11_sq > 0.0:
+            raise ValueError("EKF innovation covariance S is not positive definite")
+        l11 = np.sqrt(l11_sq)
+        for c in range(3):
+            y0 = gain_t[0, c] / l00
+            y1 = (gain_t[1, c] - l10 * y0) / l11
+            gain_t[1, c] = y1 / l11
+            gain_t[0, c] = (y0 - l10 * gain_t[1, c]) / l00
+        w0 = nu0 / l00
+        w1 = (nu1 - l10 * w0) / l11
+        nis += w0 * w0 + w1 * w1
+        for c in range(3):
+            mu[c] += gain_t[0, c] * nu0 + gain_t[1, c] * nu1
+        # Joseph form: A = I - K H; Sigma = A Sigma A^T + K R K^T, symmetrized
+        for r in range(3):
+            for c in range(3):
+                a_mat[r, c] = (1.0 if r == c else 0.0) - (
+                    gain_t[0, r] * jac[0, c] + gain_t[1, r] * jac[1, c]
+                )
+        for r in range(3):
+            for c in range(3):
+                a_cov[r, c] = a_mat[r, 0] * cov[0, c] + a_mat[r, 1] * cov[1, c] + a_mat[r, 2] * cov[2, c]
+        for r in range(3):
+            kr0 = gain_t[0, r] * r00 + gain_t[1, r] * r01
+            kr1 = gain_t[0, r] * r01 + gain_t[1, r] * r11
+            for c in range(r + 1):
+                val = a_cov[r, 0] * a_mat[c, 0] + a_cov[r, 1] * a_mat[c, 1] + a_cov[r, 2] * a_mat[c, 2]
+                val += kr0 * gain_t[0, c] + kr1 * gain_t[1, c]
+                cov[r, c] = val
+                cov[c, r] = val
     mu[2] = wrap_angle_scalar(mu[2])
-    # Joseph form: A = I - K H; Sigma = A Sigma A^T + K R_blk K^T
-    a_mat = np.eye(3)
-    for i in range(3):
-        for j in range(3):
-            for k in range(d):
-                a_mat[i, j] -= gain_t[k, i] * jac[k, j]
-    a_cov = np.zeros((3, 3))
-    for i in range(3):
-        for j in range(3):
-            for k in range(3):
-                a_cov[i, j] += a_mat[i, k] * cov[k, j]
-    new_cov = np.zeros((3, 3))
-    for i in range(3):
-        for j in range(3):
-            acc = 0.0
-            for k in range(3):
-                acc += a_cov[i, k] * a_mat[j, k]
-            new_cov[i, j] = acc
-    for blk in range(m):
-        for i in range(3):
-            for j in range(3):
-                acc = 0.0
-                for a in range(2):
-                    for b in range(2):
-                        acc += gain_t[2 * blk + a, i] * noise_cov[a, b] * gain_t[2 * blk + b, j]
-                new_cov[i, j] += acc
-    _symmetrize3(new_cov)
-    cov[:, :] = new_cov
     return nis
 
 

@@ -191,10 +191,8 @@ def _simulate_one(
         eps[i] = q_root[i, 0] * noise[0] + q_root[i, 1] * noise[1] + q_root[i, 2] * noise[2]
     collided = move_within_bounds(pose, v, omega, params[P_DT], eps, box[:4], box[B_WALLS] > 0.5)
     n = landmarks.shape[0]
-    count = int(box[B_COUNT])
-    valid = np.arange(n) < count
     measure_landmarks(
-        int(params[P_KIND]), pose, landmarks, valid, params[P_FOV], params[P_RANGE],
+        int(params[P_KIND]), pose, landmarks, int(box[B_COUNT]), params[P_FOV], params[P_RANGE],
         params[P_RROOT : P_RROOT + 4].reshape(2, 2), noise[3 : 3 + 2 * n].reshape(n, 2),
         z, visible,
     )
@@ -247,10 +245,8 @@ def _finish_one(
         if visible[j]:
             count += 1
     stats[S_N_VISIBLE] = count
-    n = landmarks.shape[0]
-    valid = np.arange(n) < int(box[B_COUNT])
     write_belief_observation(
-        mean, cov, entropy, z, visible, landmarks, valid, box, int(params[P_KIND]),
+        mean, cov, entropy, z, visible, landmarks, int(box[B_COUNT]), box, int(params[P_KIND]),
         params[P_SCALE], obs,
     )
 

@@ -66,7 +66,7 @@ def write_belief_observation(
     z: NDArray,
     visible: NDArray,
     landmarks: NDArray,
-    valid: NDArray,
+    count: int,
     bounds: NDArray,
     kind: int,
     scale: float,
@@ -76,7 +76,8 @@ def write_belief_observation(
 
     Args:
         mean: ``(3,)``; cov: ``(3, 3)``; entropy: nats.
-        z: ``(N, 2)`` scan; visible: ``(N,)``; landmarks: ``(N, 2)``; valid: ``(N,)``.
+        z: ``(N, 2)`` scan; visible: ``(N,)``; landmarks: ``(N, 2)`` of which the
+            first ``count`` are real.
         bounds: ``(4,)`` map bounds ``x_min, y_min, x_max, y_max`` (m).
         kind: sensor kind; scale: distance scale (m).
     """
@@ -96,7 +97,7 @@ def write_belief_observation(
     out[10] = _clip1(entropy / ENTROPY_SCALE)
     for j in range(landmarks.shape[0]):
         base = BELIEF_HEADER + SLOT_SIZE * j
-        if not valid[j]:
+        if j >= count:
             for k in range(SLOT_SIZE):
                 out[base + k] = 0.0
             continue

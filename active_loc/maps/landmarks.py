@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -90,16 +91,35 @@ def random_landmark_map(
         count = int(n_landmarks)
         if count < 1:
             raise ValueError(f"random_landmark_map: n_landmarks must be >= 1, got {count}")
-    points: list[NDArray[np.float64]] = []
-    for _ in range(100 * count):
-        if len(points) == count:
-            break
-        candidate = rng.uniform((margin, margin), (width - margin, height - margin))
-        if all(np.hypot(*(candidate - p)) >= min_separation for p in points):
-            points.append(candidate)
-    if len(points) < count:
+    # candidates are drawn in one block and accepted greedily in order (rejection sampling)
+    candidates = rng.uniform((margin, margin), (width - margin, height - margin), (64 * count, 2))
+    chosen = _first_separated(candidates, count, min_separation)
+    if chosen.shape[0] < count:
         raise ValueError(
             f"random_landmark_map: could not place {count} landmarks {min_separation} m apart "
             f"in {size}"
         )
-    return LandmarkMap(np.array(points), (0.0, 0.0, width, height), walls=walls)
+    return LandmarkMap(chosen, (0.0, 0.0, width, height), walls=walls)
+
+
+@numba.njit(cache=True)
+def _first_separated(candidates: NDArray, count: int, min_separation: float) -> NDArray:
+    """The first ``count`` rows of ``candidates`` ``(M, 2)`` that keep ``min_separation`` (m)
+    from every row accepted before them (fewer if the candidates run out)."""
+    chosen = np.empty((count, 2))
+    n = 0
+    limit = min_separation * min_separation
+    for i in range(candidates.shape[0]):
+        if n == count:
+            break
+        ok = True
+        for j in range(n):
+            dx = candidates[i, 0] - chosen[j, 0]
+            dy = candidates[i, 1] - chosen[j, 1]
+            if dx * dx + dy * dy < limit:
+                ok = False
+                break
+        if ok:
+            chosen[n] = candidates[i]
+            n += 1
+    return chosen[:n].copy()

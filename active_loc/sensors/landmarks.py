@@ -77,7 +77,7 @@ def measure_landmarks(
     kind: int,
     pose: NDArray,
     landmarks: NDArray,
-    valid: NDArray,
+    count: int,
     fov: float,
     max_range: float,
     noise_root: NDArray,
@@ -88,7 +88,7 @@ def measure_landmarks(
     """Simulate one scan of all landmarks from the true ``pose``.
 
     Args:
-        landmarks: ``(N, 2)`` positions; rows where ``valid`` is False are padding.
+        landmarks: ``(N, 2)`` positions; only the first ``count`` rows are real (the rest pad).
         noise_root: ``(2, 2)`` L with L L^T = R.
         standard_normals: ``(N, 2)`` N(0, 1) draws, turned into noise with ``noise_root``.
         z: ``(N, 2)`` out: measurements (zero where not visible).
@@ -96,7 +96,7 @@ def measure_landmarks(
     """
     jac = np.empty((2, 3))
     for j in range(landmarks.shape[0]):
-        seen = valid[j] and in_view(pose, landmarks[j], fov, max_range)
+        seen = j < count and in_view(pose, landmarks[j], fov, max_range)
         visible[j] = seen
         if not seen:
             z[j, 0] = 0.0
@@ -202,10 +202,9 @@ class LandmarkSensor:
         z = np.zeros((flat.shape[0], n, 2))
         seen = np.zeros((flat.shape[0], n), dtype=np.bool_)
         normals = rng.standard_normal((flat.shape[0], n, 2))
-        valid = np.ones(n, dtype=np.bool_)
         for b in range(flat.shape[0]):
             measure_landmarks(
-                self.kind, flat[b], landmarks, valid, float(self.fov), float(self.max_range),
+                self.kind, flat[b], landmarks, n, float(self.fov), float(self.max_range),
                 self.noise_root, normals[b], z[b], seen[b],
             )
         return z.reshape(*poses.shape[:-1], n, 2), seen.reshape(*poses.shape[:-1], n)

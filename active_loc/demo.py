@@ -98,7 +98,8 @@ def main(argv: list[str] | None = None) -> None:
         evaluate(args.env, RandomAgent(seed=args.seed), seeds, "random"),
     ]
     print(f"\n{args.env}, {args.episodes} episodes, seeds {seeds[0]}..{seeds[-1]} (same for both)")
-    print(f"{'policy':<15} {'mean return':>12} {'final entropy (nats)':>21} {'success':>8} {'steps':>6}")
+    header = f"{'policy':<15} {'mean return':>12} {'final entropy (nats)':>21}"
+    print(f"{header} {'success':>8} {'steps':>6}")
     for row in rows:
         print(
             f"{row.name:<15} {row.mean_return:>12.2f} {row.mean_final_entropy:>21.2f} "

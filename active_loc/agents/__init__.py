@@ -1,4 +1,4 @@
-"""Agents: ``agent.act(observation, view) -> action`` with ``view = env.unwrapped.planner_view()``."""
+"""Agents: ``agent.act(observation, view) -> action``, ``view = env.unwrapped.planner_view()``."""
 
 from active_loc.agents.random_agent import RandomAgent
 from active_loc.agents.textbook import TextbookAgent

@@ -118,7 +118,9 @@ def ekf_update(
         # H Sigma (2, 3) into gain_t, then S = H Sigma H^T + R (2 x 2)
         for r in range(2):
             for c in range(3):
-                gain_t[r, c] = jac[r, 0] * cov[0, c] + jac[r, 1] * cov[1, c] + jac[r, 2] * cov[2, c]
+                gain_t[r, c] = (
+                    jac[r, 0] * cov[0, c] + jac[r, 1] * cov[1, c] + jac[r, 2] * cov[2, c]
+                )
         s00 = gain_t[0, 0] * jac[0, 0] + gain_t[0, 1] * jac[0, 1] + gain_t[0, 2] * jac[0, 2] + r00
         s10 = gain_t[1, 0] * jac[0, 0] + gain_t[1, 1] * jac[0, 1] + gain_t[1, 2] * jac[0, 2] + r01
         s11 = gain_t[1, 0] * jac[1, 0] + gain_t[1, 1] * jac[1, 1] + gain_t[1, 2] * jac[1, 2] + r11
@@ -149,13 +151,15 @@ def ekf_update(
                 )
         for r in range(3):
             for c in range(3):
-                a_cov[r, c] = a_mat[r, 0] * cov[0, c] + a_mat[r, 1] * cov[1, c] + a_mat[r, 2] * cov[2, c]
+                a_cov[r, c] = (
+                    a_mat[r, 0] * cov[0, c] + a_mat[r, 1] * cov[1, c] + a_mat[r, 2] * cov[2, c]
+                )
         for r in range(3):
             kr0 = gain_t[0, r] * r00 + gain_t[1, r] * r01
             kr1 = gain_t[0, r] * r01 + gain_t[1, r] * r11
             for c in range(r + 1):
-                val = a_cov[r, 0] * a_mat[c, 0] + a_cov[r, 1] * a_mat[c, 1] + a_cov[r, 2] * a_mat[c, 2]
-                val += kr0 * gain_t[0, c] + kr1 * gain_t[1, c]
+                val = a_cov[r, 0] * a_mat[c, 0] + a_cov[r, 1] * a_mat[c, 1]
+                val += a_cov[r, 2] * a_mat[c, 2] + kr0 * gain_t[0, c] + kr1 * gain_t[1, c]
                 cov[r, c] = val
                 cov[c, r] = val
     mu[2] = wrap_angle_scalar(mu[2])

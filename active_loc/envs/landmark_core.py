@@ -18,6 +18,7 @@ step) and consumed by the kernel, which is both fast and exactly reproducible.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numba
@@ -42,6 +43,7 @@ from active_loc.sensors.landmarks import (
 )
 
 NOISE_BLOCK = 64
+NEED_NOISE = -2
 
 TEXTBOOK_LANDMARKS = np.array([[0.0, 0.0], [2.0, 8.0], [8.0, 2.0], [10.0, 10.0]])
 TEXTBOOK_BOUNDS = (-2.0, -2.0, 14.0, 14.0)
@@ -268,7 +270,11 @@ def step_batch(
     obs: NDArray,
     run_ekf: bool,
 ) -> int:
-    """One step of the whole batch; returns the index of a non-finite action, or -1.
+    """One step of the whole batch.
+
+    Returns -1 on success; the index of a member whose action is not finite; or
+    :data:`NEED_NOISE` when a member's noise block is used up. In the last two cases nothing
+    has been changed.
 
     Args:
         actions: ``(B, 2)`` continuous actions in [-1, 1] (clipped) or, for discrete action
@@ -287,6 +293,8 @@ def step_batch(
     for b in range(actions.shape[0]):
         if not (np.isfinite(actions[b, 0]) and np.isfinite(actions[b, 1])):
             return b
+        if noise_index[b] >= noise.shape[1]:
+            return NEED_NOISE
     r = params[P_R : P_R + 4].reshape(2, 2)
     q = params[P_Q : P_Q + 9].reshape(3, 3)
     kind = int(params[P_KIND])
@@ -374,6 +382,8 @@ class LandmarkCore:
         self.obs = np.zeros((batch_size, belief_observation_size(n)), dtype=np.float32)
         self.noise = np.zeros((batch_size, NOISE_BLOCK, 3 + 2 * n))
         self.noise_index = np.full(batch_size, NOISE_BLOCK, dtype=np.int64)
+        #: the actions of the next step, written by the env: ``(B, 2)``, see :func:`step_batch`
+        self.actions = np.zeros((batch_size, 2))
         mean0 = np.zeros((batch_size, 3))
         cov0 = np.broadcast_to(np.diag(np.square(config.initial_belief_std)), (batch_size, 3, 3))
         self.belief: EKFBelief | FilterpyEKFBelief
@@ -381,6 +391,7 @@ class LandmarkCore:
             self.belief = FilterpyEKFBelief(mean0, cov0, self.models.motion, self.models.sensor)
         else:
             self.belief = EKFBelief(mean0, cov0, self.models.motion, self.models.sensor)
+        self._bind_kernel_args()
 
     # -- reset ---------------------------------------------------------------------------------
 
@@ -426,6 +437,7 @@ class LandmarkCore:
             self.box[b : b + 1], self.models.params, self.stats[b : b + 1], self.obs[b : b + 1],
         )
         self.stats[b, S_UNCERTAINTY_REWARD] = 0.0
+        self._bind_kernel_args()
 
     # -- step ----------------------------------------------------------------------------------
 
@@ -434,22 +446,24 @@ class LandmarkCore:
         self.noise[b] = rng.standard_normal(self.noise.shape[1:])
         self.noise_index[b] = 0
 
-    def step(self, actions: NDArray[np.float64]) -> int:
-        """Advance every member; ``actions`` ``(B, 2)`` float64 as :func:`step_batch` takes.
+    def step(self, rngs: Sequence[np.random.Generator]) -> int:
+        """Advance every member with the actions in :attr:`actions` ``(B, 2)``.
 
-        Noise blocks must have been refilled where exhausted. Returns -1, or the index of a
-        member whose action was not finite (nothing was advanced then).
+        Args:
+            rngs: the Generator of each member, to refill used-up noise blocks.
+
+        Returns:
+            -1, or the index of a member whose action is not finite (nothing advanced then).
         """
-        fused = not isinstance(self.belief, FilterpyEKFBelief)
-        bad = step_batch(
-            actions, self.models.params, self.noise, self.noise_index, self.pose,
-            self.belief.mean, self.belief.cov, self.landmarks, self.box, self.z, self.visible,
-            self.stats, self.obs, fused,
-        )
-        if bad >= 0 or fused:
-            return bad
+        code = step_batch(*self._kernel_args)
+        if code == NEED_NOISE:
+            for b in np.flatnonzero(self.noise_index >= NOISE_BLOCK):
+                self.refill_noise(int(b), rngs[b])
+            code = step_batch(*self._kernel_args)
+        if code >= 0 or self._fused:
+            return code
         collided = self.stats[:, S_COLLIDED] > 0.5
-        self.belief.predict(executed_controls(actions, self.models.params, collided))
+        self.belief.predict(executed_controls(self.actions, self.models.params, collided))
         self.belief.update(self.z, self.visible, self.landmarks)
         self.stats[:, S_NIS] = self.belief.last_nis
         finish_batch(
@@ -457,3 +471,12 @@ class LandmarkCore:
             self.box, self.models.params, self.stats, self.obs,
         )
         return -1
+
+    def _bind_kernel_args(self) -> None:
+        """The argument tuple of :func:`step_batch`, built once: the arrays are persistent."""
+        self._fused = not isinstance(self.belief, FilterpyEKFBelief)
+        self._kernel_args = (
+            self.actions, self.models.params, self.noise, self.noise_index, self.pose,
+            self.belief.mean, self.belief.cov, self.landmarks, self.box, self.z, self.visible,
+            self.stats, self.obs, self._fused,
+        )

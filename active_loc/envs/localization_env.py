@@ -11,7 +11,6 @@ from numpy.typing import NDArray
 from active_loc.envs.actions import action_space
 from active_loc.envs.config import LandmarkEnvConfig
 from active_loc.envs.landmark_core import (
-    NOISE_BLOCK,
     S_COLLIDED,
     S_ENTROPY,
     S_HEAD_ERR,
@@ -118,7 +117,6 @@ class ActiveLocalizationEnv(gym.Env):
         self.action_space = action_space(self.config.action_type)
         self.observation_space = belief_observation_space(self.config.max_landmarks)
         self._continuous = self.config.action_type == "continuous"
-        self._action = np.zeros((1, 2))
         self._n_actions = len(self.core.models.primitives)
         # config values read on every step, as plain attributes
         self._reward_name = self.config.reward
@@ -157,9 +155,7 @@ class ActiveLocalizationEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         self._write_action(action)
         core = self.core
-        if core.noise_index[0] >= NOISE_BLOCK:
-            core.refill_noise(0, self.np_random)
-        if core.step(self._action) >= 0:
+        if core.step((self.np_random,)) >= 0:
             raise ValueError(f"action contains NaN or inf: {action!r}")
         self._steps += 1
         stats = core.stats[0].tolist()
@@ -217,7 +213,7 @@ class ActiveLocalizationEnv(gym.Env):
     # -- helpers ----------------------------------------------------------------------------
 
     def _write_action(self, action: Any) -> None:
-        """Validate an action and write its kernel form into ``self._action``."""
+        """Validate an action and write its kernel form into ``core.actions[0]``."""
         if self._continuous:
             shape = getattr(action, "shape", None)
             if shape is None:
@@ -227,7 +223,7 @@ class ActiveLocalizationEnv(gym.Env):
                 raise ValueError(
                     f"action must have shape (2,) for action_type='continuous', got {shape}"
                 )
-            self._action[0] = action
+            self.core.actions[0] = action
             return
         if np.ndim(action) != 0:
             raise ValueError(
@@ -237,7 +233,7 @@ class ActiveLocalizationEnv(gym.Env):
         value = float(action)
         if not (value.is_integer() and 0 <= value < self._n_actions):
             raise ValueError(f"action must be an integer in [0, {self._n_actions}), got {action!r}")
-        self._action[0] = self.core.models.primitives[int(value)]
+        self.core.actions[0] = self.core.models.primitives[int(value)]
 
     def _info(self, stats: list[float]) -> dict[str, Any]:
         collided = stats[S_COLLIDED] > 0.5

@@ -19,7 +19,9 @@ TWO_PI = 2.0 * np.pi
 def wrap_angle(angle: ArrayLike) -> NDArray[np.float64]:
     """Wrap angles (rad) to ``[-pi, pi)``; shape is kept."""
     angle = np.asarray(angle, dtype=np.float64)
-    return (angle + np.pi) % TWO_PI - np.pi
+    wrapped = (angle + np.pi) % TWO_PI - np.pi
+    # float rounding can land exactly on +pi for angles just below -pi
+    return np.where(wrapped >= np.pi, wrapped - TWO_PI, wrapped)
 
 
 @numba.njit(cache=True, inline="always")

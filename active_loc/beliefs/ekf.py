@@ -91,6 +91,8 @@ def ekf_update(
         The normalized innovation squared of the stacked update, ``nu^T S^-1 nu`` (the sum of
         the per-block terms); 0 when nothing is visible.
     """
+    if not np.any(visible):
+        return 0.0  # nothing seen: the belief stays bit-identical
     # scratch rows: 0-1 H_j (2, 3); 2-3 K_j^T (2, 3); 4-6 A = I - K H; 7-9 A Sigma; 10 zhat
     work = np.empty((11, 3))
     jac = work[0:2]

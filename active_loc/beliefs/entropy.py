@@ -22,9 +22,12 @@ def gaussian_entropy(cov: ArrayLike) -> NDArray[np.float64]:
     Raises:
         ValueError: if a covariance is not positive definite.
     """
-    sign, logdet = np.linalg.slogdet(np.asarray(cov, dtype=np.float64))
-    if np.any(sign <= 0):
-        raise ValueError("gaussian_entropy: covariance is not positive definite")
+    cov = np.asarray(cov, dtype=np.float64)
+    try:
+        root = np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        raise ValueError("gaussian_entropy: covariance is not positive definite") from None
+    logdet = 2.0 * np.sum(np.log(np.diagonal(root, axis1=-2, axis2=-1)), axis=-1)
     return 0.5 * (LOG_2PIE_3 + logdet)
 
 

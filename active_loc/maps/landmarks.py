@@ -25,18 +25,28 @@ class LandmarkMap:
     walls: bool = True
 
     def __post_init__(self) -> None:
-        positions = np.array(self.positions, dtype=np.float64)
+        try:
+            positions = np.array(self.positions, dtype=np.float64)
+        except (TypeError, ValueError) as err:
+            raise ValueError(
+                f"LandmarkMap.positions must be an (N, 2) array of numbers: {err}"
+            ) from None
         if positions.ndim != 2 or positions.shape[1] != 2:
             raise ValueError(f"LandmarkMap.positions must have shape (N, 2), got {positions.shape}")
         if positions.shape[0] == 0:
             raise ValueError("LandmarkMap.positions is empty: a landmark map needs >= 1 landmark")
         if not np.all(np.isfinite(positions)):
             raise ValueError("LandmarkMap.positions contains NaN or inf")
-        x_min, y_min, x_max, y_max = (float(b) for b in self.bounds)
-        if not (x_max > x_min and y_max > y_min):
+        if len(self.bounds) != 4:
             raise ValueError(
-                f"LandmarkMap.bounds must be (x_min, y_min, x_max, y_max) with max > min, "
-                f"got {self.bounds}"
+                f"LandmarkMap.bounds must be (x_min, y_min, x_max, y_max), got {self.bounds}"
+            )
+        x_min, y_min, x_max, y_max = (float(b) for b in self.bounds)
+        finite = all(np.isfinite((x_min, y_min, x_max, y_max)))
+        if not (finite and x_max > x_min and y_max > y_min):
+            raise ValueError(
+                f"LandmarkMap.bounds must be (x_min, y_min, x_max, y_max), finite, with "
+                f"max > min, got {self.bounds}"
             )
         positions.setflags(write=False)
         object.__setattr__(self, "positions", positions)

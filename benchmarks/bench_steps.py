@@ -30,7 +30,8 @@ def steps_per_second(env_id: str, steps: int, repeats: int, **kwargs: object) ->
     if isinstance(space, gym.spaces.Discrete):
         actions = list(rng.integers(space.n, size=steps).tolist())
     else:
-        actions = list(rng.uniform(space.low, space.high, (steps, *space.shape)).astype(space.dtype))
+        draws = rng.uniform(space.low, space.high, (steps, *space.shape))
+        actions = list(draws.astype(space.dtype))
     env.reset(seed=0)
     for action in actions[:1000]:  # warm-up: numba compilation, caches
         _, _, terminated, truncated, _ = env.step(action)
@@ -64,7 +65,8 @@ def main() -> None:
         ("ActiveLoc/Textbook-v0 filterpy", "ActiveLoc/Textbook-v0", {"ekf_backend": "filterpy"})
     )
 
-    print(f"machine: {platform.processor() or platform.machine()}, python {platform.python_version()}")
+    machine = platform.processor() or platform.machine()
+    print(f"machine: {machine}, python {platform.python_version()}")
     print(f"{args.steps} steps per timing, best of {args.repeats}\n")
     results: dict[str, dict[str, float]] = {}
     baseline = 0.0

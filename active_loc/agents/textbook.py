@@ -7,7 +7,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from active_loc.envs.actions import controls_to_continuous
 from active_loc.envs.planner_view import PlannerView
 
 
@@ -22,7 +21,5 @@ class TextbookAgent:
         self.speed = speed
 
     def act(self, observation: Any, view: PlannerView) -> NDArray[np.float64]:
-        cfg = view.config
         k = view.step + 1
-        controls = np.array([self.speed, np.sin(k * cfg.dt)])
-        return controls_to_continuous(controls, cfg.v_min, cfg.v_max, cfg.omega_max)
+        return view.limits.encode(np.array([self.speed, np.sin(k * view.limits.dt)]))

@@ -7,6 +7,8 @@ is an error. Discrete actions index :data:`PRIMITIVES`.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
@@ -22,6 +24,41 @@ PRIMITIVES: tuple[tuple[str, float, float], ...] = (
     ("turn_right", 0.0, -1.0),
 )
 PRIMITIVE_NAMES = tuple(name for name, _, _ in PRIMITIVES)
+
+
+@dataclass(frozen=True)
+class ControlLimits:
+    """How env actions become controls: what a planner needs to decode them.
+
+    Attributes:
+        action_type: ``"continuous"`` or ``"discrete"``.
+        dt: time step (s).
+        v_min, v_max: forward speed range (m/s).
+        omega_max: turn rate range ``[-omega_max, omega_max]`` (rad/s).
+    """
+
+    action_type: str
+    dt: float
+    v_min: float
+    v_max: float
+    omega_max: float
+
+    def primitives(self) -> NDArray[np.float64]:
+        """``(len(PRIMITIVES), 2)`` physical controls of the discrete primitives."""
+        return primitive_controls(self.v_min, self.v_max, self.omega_max)
+
+    def decode(self, action: object) -> NDArray[np.float64]:
+        """Physical control (V m/s, omega rad/s) of one env action, as the env decodes it."""
+        if self.action_type == "discrete":
+            return self.primitives()[int(action)]  # type: ignore[call-overload]
+        a = np.clip(np.asarray(action, dtype=np.float64).reshape(2), -1.0, 1.0)
+        v = self.v_min + 0.5 * (a[0] + 1.0) * (self.v_max - self.v_min)
+        return np.array([v, a[1] * self.omega_max])
+
+    def encode(self, controls: NDArray) -> NDArray[np.float64]:
+        """Continuous action(s) that decode to ``controls`` ``(..., 2)``; float64 so that exact
+        controls survive the round trip."""
+        return controls_to_continuous(controls, self.v_min, self.v_max, self.omega_max)
 
 
 def action_space(action_type: str) -> spaces.Space:

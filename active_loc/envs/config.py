@@ -91,6 +91,9 @@ class LandmarkEnvConfig:
                     "map must be 'random', 'textbook', a LandmarkMap or a non-empty (N, 2) "
                     f"array of landmark positions, got shape {positions.shape}"
                 )
+        for f in fields(self):
+            if f.type == "float":
+                _number(f.name, getattr(self, f.name))
         _positive("dt", self.dt)
         _positive("v_max", self.v_max, allow_zero=True)
         if not (math.isfinite(self.v_min) and self.v_min <= self.v_max):
@@ -142,7 +145,13 @@ def _one_of(name: str, value: object, allowed: tuple[str, ...]) -> None:
         raise ValueError(f"{name}={value!r} is not one of {allowed}")
 
 
+def _number(name: str, value: object) -> None:
+    if not isinstance(value, (int, float, np.integer, np.floating)) or isinstance(value, bool):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+
+
 def _positive(name: str, value: float, allow_zero: bool = False) -> None:
+    _number(name, value)
     ok = math.isfinite(value) and (value >= 0 if allow_zero else value > 0)
     if not ok:
         bound = ">= 0" if allow_zero else "> 0"

@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from active_loc.beliefs.ekf import EKFBelief, ekf_predict, ekf_update
 from active_loc.beliefs.ekf_filterpy import FilterpyEKFBelief
 from active_loc.beliefs.entropy import LOG_2PIE_3, det3
-from active_loc.envs.actions import primitive_controls
+from active_loc.envs.actions import ControlLimits
 from active_loc.envs.config import LandmarkEnvConfig
 from active_loc.envs.observations import belief_observation_size, write_belief_observation
 from active_loc.envs.rewards import REWARD_CODES, uncertainty_reward
@@ -99,6 +99,7 @@ class LandmarkModels:
     sensor: LandmarkSensor
     params: NDArray[np.float64]
     primitives: NDArray[np.float64]
+    limits: ControlLimits
 
 
 def build_models(cfg: LandmarkEnvConfig) -> LandmarkModels:
@@ -132,9 +133,8 @@ def build_models(cfg: LandmarkEnvConfig) -> LandmarkModels:
     params[P_QROOT : P_QROOT + 9] = motion.noise_root.ravel()
     params[P_R : P_R + 4] = sensor.noise_cov.ravel()
     params[P_RROOT : P_RROOT + 4] = sensor.noise_root.ravel()
-    params.setflags(write=False)
-    primitives = primitive_controls(cfg.v_min, cfg.v_max, cfg.omega_max)
-    return LandmarkModels(motion, sensor, params, primitives)
+    limits = ControlLimits(cfg.action_type, cfg.dt, cfg.v_min, cfg.v_max, cfg.omega_max)
+    return LandmarkModels(motion, sensor, params, limits.primitives(), limits)
 
 
 def _map_extent(cfg: LandmarkEnvConfig) -> tuple[float, float]:
@@ -366,7 +366,8 @@ class LandmarkCore:
         self.models = build_models(config)
         self.batch_size = batch_size
         n = config.max_landmarks
-        self.fixed_map = None if config.map == "random" else _fixed_map(config)
+        draws_maps = isinstance(config.map, str) and config.map == "random"
+        self.fixed_map = None if draws_maps else _fixed_map(config)
         if self.fixed_map is not None and self.fixed_map.n_landmarks > n:
             raise ValueError(
                 f"the map has {self.fixed_map.n_landmarks} landmarks but max_landmarks={n}; "

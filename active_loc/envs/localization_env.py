@@ -205,8 +205,7 @@ class ActiveLocalizationEnv(gym.Env):
             motion=self.core.models.motion,
             sensor=self.core.models.sensor,
             action_space=self.action_space,
-            controls=self.core.models.primitives.copy(),
-            config=self.config,
+            limits=self.core.models.limits,
             step=self._steps,
         )
 
@@ -223,17 +222,18 @@ class ActiveLocalizationEnv(gym.Env):
                 raise ValueError(
                     f"action must have shape (2,) for action_type='continuous', got {shape}"
                 )
+            if action.dtype.kind not in "fiu":
+                raise ValueError(f"action must be real numbers, got dtype {action.dtype}")
             self.core.actions[0] = action
             return
-        if np.ndim(action) != 0:
+        if not _is_integer(action):
             raise ValueError(
-                f"action must be a scalar index for action_type='discrete', got shape "
-                f"{np.shape(action)}"
+                f"action must be an integer index for action_type='discrete', got {action!r}"
             )
-        value = float(action)
-        if not (value.is_integer() and 0 <= value < self._n_actions):
-            raise ValueError(f"action must be an integer in [0, {self._n_actions}), got {action!r}")
-        self.core.actions[0] = self.core.models.primitives[int(value)]
+        index = int(action)
+        if not 0 <= index < self._n_actions:
+            raise ValueError(f"action must be an integer in [0, {self._n_actions}), got {index}")
+        self.core.actions[0] = self.core.models.primitives[index]
 
     def _info(self, stats: list[float]) -> dict[str, Any]:
         collided = stats[S_COLLIDED] > 0.5
@@ -275,3 +275,10 @@ class ActiveLocalizationEnv(gym.Env):
             entropy=float(core.stats[0, S_ENTROPY]),
             title=self.spec.id if self.spec is not None else type(self).__name__,
         )
+
+
+def _is_integer(action: Any) -> bool:
+    """An int, a numpy integer, or a 0-d integer array (what SB3's predict returns); no bool."""
+    if isinstance(action, np.ndarray):
+        return action.ndim == 0 and action.dtype.kind in "iu"
+    return isinstance(action, (int, np.integer)) and not isinstance(action, (bool, np.bool_))

@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from active_loc.beliefs.ekf import EKFBelief
 from active_loc.beliefs.ekf_filterpy import FilterpyEKFBelief
-from active_loc.envs.config import LandmarkEnvConfig
+from active_loc.envs.actions import ControlLimits
 from active_loc.maps import LandmarkMap
 from active_loc.motion import UnicycleModel
 from active_loc.sensors.landmarks import LandmarkSensor
@@ -25,9 +25,10 @@ class PlannerView:
         map: the landmark map of the episode.
         motion, sensor: the models the filter uses.
         action_space: the env's action space.
-        controls: ``(A, 2)`` physical controls (V m/s, omega rad/s) of the discrete primitives.
-        config: the env's configuration.
+        limits: how actions decode into controls (action type, dt, speed and turn limits).
         step: steps taken so far in the episode.
+
+    It holds no configuration beyond that: a fixed start pose, for one, is the truth.
     """
 
     belief: EKFBelief | FilterpyEKFBelief
@@ -35,18 +36,12 @@ class PlannerView:
     motion: UnicycleModel
     sensor: LandmarkSensor
     action_space: spaces.Space
-    controls: NDArray[np.float64]
-    config: LandmarkEnvConfig
+    limits: ControlLimits
     step: int
 
     def decode(self, action: object) -> NDArray[np.float64]:
-        """Physical control (V, omega) of an env action, as the env decodes it."""
-        cfg = self.config
-        if cfg.action_type == "discrete":
-            return self.controls[int(action)].copy()  # type: ignore[call-overload]
-        a = np.clip(np.asarray(action, dtype=np.float64).reshape(2), -1.0, 1.0)
-        v = cfg.v_min + 0.5 * (a[0] + 1.0) * (cfg.v_max - cfg.v_min)
-        return np.array([v, a[1] * cfg.omega_max])
+        """Physical control (V m/s, omega rad/s) of an env action, as the env decodes it."""
+        return self.limits.decode(action)
 
     def simulate(
         self,

@@ -67,10 +67,27 @@ def move_within_bounds(
     Returns:
         True when the translation was blocked (a collision); the heading still turns.
     """
+    e_x, e_y, e_theta = noise[0], noise[1], noise[2]
+    return move_within_bounds_scalar(pose, v, omega, dt, e_x, e_y, e_theta, bounds, walls)
+
+
+@numba.njit(cache=True)
+def move_within_bounds_scalar(
+    pose: NDArray,
+    v: float,
+    omega: float,
+    dt: float,
+    e_x: float,
+    e_y: float,
+    e_theta: float,
+    bounds: NDArray,
+    walls: bool,
+) -> bool:
+    """:func:`move_within_bounds` with the noise as three scalars (no array on the step path)."""
     theta = pose[2]
-    x = pose[0] + v * np.cos(theta) * dt + noise[0]
-    y = pose[1] + v * np.sin(theta) * dt + noise[1]
-    pose[2] = wrap_angle_scalar(theta + omega * dt + noise[2])
+    x = pose[0] + v * np.cos(theta) * dt + e_x
+    y = pose[1] + v * np.sin(theta) * dt + e_y
+    pose[2] = wrap_angle_scalar(theta + omega * dt + e_theta)
     if walls and not (bounds[0] <= x <= bounds[2] and bounds[1] <= y <= bounds[3]):
         return True
     pose[0] = x

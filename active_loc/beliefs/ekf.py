@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from active_loc.beliefs.entropy import gaussian_entropy
 from active_loc.geometry import wrap_angle_scalar
 from active_loc.motion import UnicycleModel, unicycle_mean
-from active_loc.sensors.landmarks import RANGE_BEARING, LandmarkSensor, expected_measurement
+from active_loc.sensors.landmarks import RANGE_BEARING, LandmarkSensor, measurement_and_jacobian
 
 
 @numba.njit(cache=True)
@@ -93,13 +93,12 @@ def ekf_update(
     """
     if not np.any(visible):
         return 0.0  # nothing seen: the belief stays bit-identical
-    # scratch rows: 0-1 H_j (2, 3); 2-3 K_j^T (2, 3); 4-6 A = I - K H; 7-9 A Sigma; 10 zhat
-    work = np.empty((11, 3))
+    # scratch rows: 0-1 H_j (2, 3); 2-3 K_j^T (2, 3); 4-6 A = I - K H; 7-9 A Sigma
+    work = np.empty((10, 3))
     jac = work[0:2]
     gain_t = work[2:4]
     a_mat = work[4:7]
     a_cov = work[7:10]
-    zhat = work[10]
     bar0, bar1, bar2 = mu[0], mu[1], mu[2]
     r00, r01, r11 = noise_cov[0, 0], 0.5 * (noise_cov[0, 1] + noise_cov[1, 0]), noise_cov[1, 1]
     nis = 0.0
@@ -107,12 +106,12 @@ def ekf_update(
         if not visible[j]:
             continue
         # linearize at the predicted mean (not the partially updated one): stacked semantics
-        mu[0], mu[1], mu[2], bar0, bar1, bar2 = bar0, bar1, bar2, mu[0], mu[1], mu[2]
-        expected_measurement(kind, mu, landmarks[j], zhat, jac)
-        mu[0], mu[1], mu[2], bar0, bar1, bar2 = bar0, bar1, bar2, mu[0], mu[1], mu[2]
+        zhat0, zhat1, jac[0, 0], jac[0, 1], jac[0, 2], jac[1, 0], jac[1, 1], jac[1, 2] = (
+            measurement_and_jacobian(kind, bar0, bar1, bar2, landmarks[j, 0], landmarks[j, 1])
+        )
         d0, d1, d2 = mu[0] - bar0, mu[1] - bar1, wrap_angle_scalar(mu[2] - bar2)
-        nu0 = z[j, 0] - zhat[0]
-        nu1 = z[j, 1] - zhat[1]
+        nu0 = z[j, 0] - zhat0
+        nu1 = z[j, 1] - zhat1
         if kind == RANGE_BEARING:
             nu1 = wrap_angle_scalar(nu1)
         nu0 -= jac[0, 0] * d0 + jac[0, 1] * d1 + jac[0, 2] * d2

@@ -34,7 +34,7 @@ from active_loc.envs.observations import belief_observation_size, write_belief_o
 from active_loc.envs.rewards import REWARD_CODES, uncertainty_reward
 from active_loc.geometry import wrap_angle_scalar
 from active_loc.maps import LandmarkMap, random_landmark_map
-from active_loc.motion import UnicycleModel, move_within_bounds
+from active_loc.motion import UnicycleModel, move_within_bounds_scalar
 from active_loc.sensors.landmarks import (
     LandmarkSensor,
     RangeBearingSensor,
@@ -187,16 +187,18 @@ def _simulate_one(
     visible: NDArray,
 ) -> bool:
     """Move the true robot with noise, then scan; returns whether the move was blocked."""
-    q_root = params[P_QROOT : P_QROOT + 9].reshape(3, 3)
-    eps = np.empty(3)
-    for i in range(3):
-        eps[i] = q_root[i, 0] * noise[0] + q_root[i, 1] * noise[1] + q_root[i, 2] * noise[2]
-    collided = move_within_bounds(pose, v, omega, params[P_DT], eps, box[:4], box[B_WALLS] > 0.5)
-    n = landmarks.shape[0]
+    # motion noise L_Q e from the row's first three normals (L_Q row-major in params)
+    q = P_QROOT
+    e_x = params[q] * noise[0] + params[q + 1] * noise[1] + params[q + 2] * noise[2]
+    e_y = params[q + 3] * noise[0] + params[q + 4] * noise[1] + params[q + 5] * noise[2]
+    e_t = params[q + 6] * noise[0] + params[q + 7] * noise[1] + params[q + 8] * noise[2]
+    collided = move_within_bounds_scalar(
+        pose, v, omega, params[P_DT], e_x, e_y, e_t, box[:4], box[B_WALLS] > 0.5
+    )
+    r = P_RROOT
     measure_landmarks(
         int(params[P_KIND]), pose, landmarks, int(box[B_COUNT]), params[P_FOV], params[P_RANGE],
-        params[P_RROOT : P_RROOT + 4].reshape(2, 2), noise[3 : 3 + 2 * n].reshape(n, 2),
-        z, visible,
+        (params[r], params[r + 2], params[r + 3]), noise[3:], z, visible,
     )
     return collided
 
@@ -297,7 +299,7 @@ def step_batch(
             return NEED_NOISE
     r = params[P_R : P_R + 4].reshape(2, 2)
     q = params[P_Q : P_Q + 9].reshape(3, 3)
-    kind = int(params[P_KIND])
+    kind = int(params[P_KIND])  # reshaped once per call, not per member
     for b in range(actions.shape[0]):
         v, omega = _decode(actions[b], params)
         row = noise[b, noise_index[b]]
@@ -336,6 +338,66 @@ def finish_batch(
             pose[b], mean[b], cov[b], z[b], visible[b], landmarks[b], box[b], params,
             stats[b], obs[b],
         )
+
+
+@numba.njit(cache=True)
+def reset_member_kernel(
+    b: int,
+    positions: NDArray,
+    bounds: NDArray,
+    walls: bool,
+    random_start: bool,
+    start: NDArray,
+    normals: NDArray,
+    error_std: NDArray,
+    initial_cov: NDArray,
+    params: NDArray,
+    pose: NDArray,
+    mean: NDArray,
+    cov: NDArray,
+    landmarks: NDArray,
+    box: NDArray,
+    z: NDArray,
+    visible: NDArray,
+    noise_index: NDArray,
+    stats: NDArray,
+    obs: NDArray,
+) -> None:
+    """Write a new episode of member ``b`` into the batch arrays.
+
+    Args:
+        positions: ``(n, 2)`` landmarks of the episode's map; bounds ``(4,)``; walls.
+        random_start: if True, ``start`` holds 3 uniforms in [0, 1) placing the robot uniformly
+            in the map (1 m from the border, or a quarter of a small map) with any heading;
+            otherwise ``start`` is the start pose.
+        normals: 3 standard normals; the belief mean is the start + ``error_std * normals``.
+        initial_cov: ``(3, 3)`` initial belief covariance.
+    """
+    n = positions.shape[0]
+    landmarks[b] = 0.0
+    landmarks[b, :n] = positions
+    box[b, :4] = bounds
+    box[b, B_WALLS] = 1.0 if walls else 0.0
+    box[b, B_COUNT] = n
+    if random_start:
+        margin = min(1.0, 0.25 * (bounds[2] - bounds[0]), 0.25 * (bounds[3] - bounds[1]))
+        pose[b, 0] = bounds[0] + margin + start[0] * (bounds[2] - bounds[0] - 2 * margin)
+        pose[b, 1] = bounds[1] + margin + start[1] * (bounds[3] - bounds[1] - 2 * margin)
+        pose[b, 2] = -np.pi + 2.0 * np.pi * start[2]
+    else:
+        pose[b] = start
+    for i in range(3):
+        mean[b, i] = pose[b, i] + error_std[i] * normals[i]
+    mean[b, 2] = wrap_angle_scalar(mean[b, 2])
+    cov[b] = initial_cov
+    z[b] = 0.0
+    visible[b] = False
+    noise_index[b] = NOISE_BLOCK  # the first step draws a fresh noise block
+    stats[b] = 0.0
+    _finish_one(
+        pose[b], mean[b], cov[b], z[b], visible[b], landmarks[b], box[b], params, stats[b], obs[b]
+    )
+    stats[b, S_UNCERTAINTY_REWARD] = 0.0
 
 
 def executed_controls(actions: NDArray, params: NDArray, collided: NDArray) -> NDArray:
@@ -385,6 +447,10 @@ class LandmarkCore:
         self.noise_index = np.full(batch_size, NOISE_BLOCK, dtype=np.int64)
         #: the actions of the next step, written by the env: ``(B, 2)``, see :func:`step_batch`
         self.actions = np.zeros((batch_size, 2))
+        self._random_start = config.start == "random"
+        self._start_pose = np.array(config.start_pose, dtype=np.float64)
+        self._error_std = np.array(config.initial_error_std, dtype=np.float64)
+        self._initial_cov = np.diag(np.square(config.initial_belief_std))
         mean0 = np.zeros((batch_size, 3))
         cov0 = np.broadcast_to(np.diag(np.square(config.initial_belief_std)), (batch_size, 3, 3))
         self.belief: EKFBelief | FilterpyEKFBelief
@@ -404,43 +470,15 @@ class LandmarkCore:
         else:
             lmap = self.fixed_map
         self.maps[b] = lmap
-        n = lmap.n_landmarks
-        self.landmarks[b] = 0.0
-        self.landmarks[b, :n] = lmap.positions
-        self.box[b, :4] = lmap.bounds
-        self.box[b, B_WALLS] = 1.0 if lmap.walls else 0.0
-        self.box[b, B_COUNT] = n
-        if cfg.start == "random":
-            x_min, y_min, x_max, y_max = lmap.bounds
-            margin = min(1.0, 0.25 * (x_max - x_min), 0.25 * (y_max - y_min))
-            xy = rng.uniform((x_min + margin, y_min + margin), (x_max - margin, y_max - margin))
-            self.pose[b] = xy[0], xy[1], rng.uniform(-np.pi, np.pi)
-        else:
-            self.pose[b] = cfg.start_pose
-        error = rng.standard_normal(3) * np.asarray(cfg.initial_error_std)
-        mean = self.pose[b] + error
-        mean[2] = wrap_angle_scalar(mean[2])
-        if isinstance(self.belief, FilterpyEKFBelief):
-            self.belief = FilterpyEKFBelief(
-                mean, np.diag(np.square(cfg.initial_belief_std)), self.models.motion,
-                self.models.sensor,
-            )
-        else:
-            self.belief.mean[b] = mean
-            self.belief.cov[b] = np.diag(np.square(cfg.initial_belief_std))
-        self.z[b] = 0.0
-        self.visible[b] = False
-        self.noise_index[b] = NOISE_BLOCK
-        self.stats[b] = 0.0
-        finish_batch(
-            self.pose[b : b + 1], self.belief.mean[b : b + 1], self.belief.cov[b : b + 1],
-            self.z[b : b + 1], self.visible[b : b + 1], self.landmarks[b : b + 1],
-            self.box[b : b + 1], self.models.params, self.stats[b : b + 1], self.obs[b : b + 1],
+        uniforms = rng.random(3) if self._random_start else self._start_pose
+        normals = rng.standard_normal(3)
+        reset_member_kernel(
+            b, lmap.positions, np.asarray(lmap.bounds), lmap.walls, self._random_start, uniforms,
+            normals, self._error_std, self._initial_cov, self.models.params, self.pose,
+            self.belief.mean, self.belief.cov, self.landmarks, self.box, self.z, self.visible,
+            self.noise_index, self.stats, self.obs,
         )
-        self.stats[b, S_UNCERTAINTY_REWARD] = 0.0
         self._bind_kernel_args()
-
-    # -- step ----------------------------------------------------------------------------------
 
     def refill_noise(self, b: int, rng: np.random.Generator) -> None:
         """Draw the next block of step noise of member ``b`` from its Generator."""

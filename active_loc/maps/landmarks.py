@@ -101,9 +101,17 @@ def random_landmark_map(
         count = int(n_landmarks)
         if count < 1:
             raise ValueError(f"random_landmark_map: n_landmarks must be >= 1, got {count}")
-    # candidates are drawn in one block and accepted greedily in order (rejection sampling)
-    candidates = rng.uniform((margin, margin), (width - margin, height - margin), (64 * count, 2))
-    chosen = _first_separated(candidates, count, min_separation)
+    # rejection sampling: candidates drawn in blocks, accepted greedily in order
+    low = np.array([margin, margin])
+    span = np.array([width - 2 * margin, height - 2 * margin])
+    candidates = np.empty((0, 2))
+    chosen = candidates
+    for _ in range(6):
+        block = low + span * rng.random((8 * count * max(1, len(candidates) // count), 2))
+        candidates = np.concatenate([candidates, block])
+        chosen = _first_separated(candidates, count, min_separation)
+        if chosen.shape[0] == count:
+            break
     if chosen.shape[0] < count:
         raise ValueError(
             f"random_landmark_map: could not place {count} landmarks {min_separation} m apart "

@@ -27,48 +27,62 @@ RANGE_BEARING = 1
 
 
 @numba.njit(cache=True)
+def measurement(kind: int, x: float, y: float, theta: float, mx: float, my: float) -> tuple:
+    """h(pose, m) of landmark ``(mx, my)`` seen from pose ``(x, y, theta)``: ``(z0, z1)``."""
+    dx = mx - x
+    dy = my - y
+    if kind == RELATIVE_POSITION:
+        c = np.cos(theta)
+        s = np.sin(theta)
+        return c * dx + s * dy, -s * dx + c * dy
+    return np.sqrt(dx * dx + dy * dy), wrap_angle_scalar(np.arctan2(dy, dx) - theta)
+
+
+@numba.njit(cache=True)
+def measurement_and_jacobian(
+    kind: int, x: float, y: float, theta: float, mx: float, my: float
+) -> tuple:
+    """h(pose, m) and its Jacobian dh/dpose, as the 8-tuple
+    ``(z0, z1, H00, H01, H02, H10, H11, H12)`` (scalars: no allocation on the step path)."""
+    dx = mx - x
+    dy = my - y
+    if kind == RELATIVE_POSITION:
+        c = np.cos(theta)
+        s = np.sin(theta)
+        z0 = c * dx + s * dy
+        z1 = -s * dx + c * dy
+        return z0, z1, -c, -s, z1, s, -c, -z0
+    # a landmark exactly at the robot has no bearing; keep the Jacobian finite
+    q = max(dx * dx + dy * dy, 1e-12)
+    r = np.sqrt(q)
+    bearing = wrap_angle_scalar(np.arctan2(dy, dx) - theta)
+    return r, bearing, -dx / r, -dy / r, 0.0, dy / q, -dx / q, -1.0
+
+
+@numba.njit(cache=True)
 def expected_measurement(
     kind: int, pose: NDArray, landmark: NDArray, z: NDArray, jac: NDArray
 ) -> None:
     """h(pose, m) into ``z`` ``(2,)`` and its Jacobian dh/dpose into ``jac`` ``(2, 3)``."""
-    dx = landmark[0] - pose[0]
-    dy = landmark[1] - pose[1]
-    if kind == RELATIVE_POSITION:
-        c = np.cos(pose[2])
-        s = np.sin(pose[2])
-        z[0] = c * dx + s * dy
-        z[1] = -s * dx + c * dy
-        jac[0, 0] = -c
-        jac[0, 1] = -s
-        jac[0, 2] = z[1]
-        jac[1, 0] = s
-        jac[1, 1] = -c
-        jac[1, 2] = -z[0]
-    else:
-        q = dx * dx + dy * dy
-        # a landmark exactly at the robot has no bearing; keep the Jacobian finite
-        q = max(q, 1e-12)
-        r = np.sqrt(q)
-        z[0] = r
-        z[1] = wrap_angle_scalar(np.arctan2(dy, dx) - pose[2])
-        jac[0, 0] = -dx / r
-        jac[0, 1] = -dy / r
-        jac[0, 2] = 0.0
-        jac[1, 0] = dy / q
-        jac[1, 1] = -dx / q
-        jac[1, 2] = -1.0
+    out = measurement_and_jacobian(kind, pose[0], pose[1], pose[2], landmark[0], landmark[1])
+    z[0], z[1] = out[0], out[1]
+    jac[0, 0], jac[0, 1], jac[0, 2] = out[2], out[3], out[4]
+    jac[1, 0], jac[1, 1], jac[1, 2] = out[5], out[6], out[7]
 
 
 @numba.njit(cache=True)
-def in_view(pose: NDArray, landmark: NDArray, fov: float, max_range: float) -> bool:
-    """Whether ``landmark`` is within ``max_range`` (m) and the field of view ``fov`` (rad)."""
-    dx = landmark[0] - pose[0]
-    dy = landmark[1] - pose[1]
+def in_view(
+    x: float, y: float, theta: float, mx: float, my: float, fov: float, max_range: float
+) -> bool:
+    """Whether landmark ``(mx, my)`` is within ``max_range`` (m) and the field of view ``fov``
+    (rad) of pose ``(x, y, theta)``."""
+    dx = mx - x
+    dy = my - y
     if dx * dx + dy * dy > max_range * max_range:
         return False
     if fov >= 2.0 * np.pi:
         return True
-    bearing = wrap_angle_scalar(np.arctan2(dy, dx) - pose[2])
+    bearing = wrap_angle_scalar(np.arctan2(dy, dx) - theta)
     return abs(bearing) <= 0.5 * fov
 
 
@@ -80,8 +94,8 @@ def measure_landmarks(
     count: int,
     fov: float,
     max_range: float,
-    noise_root: NDArray,
-    standard_normals: NDArray,
+    noise_root: tuple,
+    normals: NDArray,
     z: NDArray,
     visible: NDArray,
 ) -> None:
@@ -89,25 +103,27 @@ def measure_landmarks(
 
     Args:
         landmarks: ``(N, 2)`` positions; only the first ``count`` rows are real (the rest pad).
-        noise_root: ``(2, 2)`` L with L L^T = R.
-        standard_normals: ``(N, 2)`` N(0, 1) draws, turned into noise with ``noise_root``.
+        noise_root: ``(l00, l10, l11)``, the lower Cholesky factor L of R (L L^T = R).
+        normals: ``(2 N,)`` N(0, 1) draws, landmark j's at ``2 j`` and ``2 j + 1``.
         z: ``(N, 2)`` out: measurements (zero where not visible).
         visible: ``(N,)`` out: which landmarks were seen.
     """
-    jac = np.empty((2, 3))
+    l00, l10, l11 = noise_root
+    x, y, theta = pose[0], pose[1], pose[2]
     for j in range(landmarks.shape[0]):
-        seen = j < count and in_view(pose, landmarks[j], fov, max_range)
+        mx, my = landmarks[j, 0], landmarks[j, 1]
+        seen = j < count and in_view(x, y, theta, mx, my, fov, max_range)
         visible[j] = seen
         if not seen:
             z[j, 0] = 0.0
             z[j, 1] = 0.0
             continue
-        expected_measurement(kind, pose, landmarks[j], z[j], jac)
-        e0, e1 = standard_normals[j, 0], standard_normals[j, 1]
-        z[j, 0] += noise_root[0, 0] * e0 + noise_root[0, 1] * e1
-        z[j, 1] += noise_root[1, 0] * e0 + noise_root[1, 1] * e1
-        if kind == RANGE_BEARING:
-            z[j, 1] = wrap_angle_scalar(z[j, 1])
+        z0, z1 = measurement(kind, x, y, theta, mx, my)
+        e0 = normals[2 * j]
+        e1 = normals[2 * j + 1]
+        z[j, 0] = z0 + l00 * e0
+        z1 += l10 * e0 + l11 * e1
+        z[j, 1] = wrap_angle_scalar(z1) if kind == RANGE_BEARING else z1
 
 
 def _check_sensor(name: str, noise_cov: NDArray, fov: float, max_range: float) -> NDArray:
@@ -201,11 +217,12 @@ class LandmarkSensor:
         n = landmarks.shape[0]
         z = np.zeros((flat.shape[0], n, 2))
         seen = np.zeros((flat.shape[0], n), dtype=np.bool_)
-        normals = rng.standard_normal((flat.shape[0], n, 2))
+        normals = rng.standard_normal((flat.shape[0], 2 * n))
+        root = self.noise_root
         for b in range(flat.shape[0]):
             measure_landmarks(
                 self.kind, flat[b], landmarks, n, float(self.fov), float(self.max_range),
-                self.noise_root, normals[b], z[b], seen[b],
+                (root[0, 0], root[1, 0], root[1, 1]), normals[b], z[b], seen[b],
             )
         return z.reshape(*poses.shape[:-1], n, 2), seen.reshape(*poses.shape[:-1], n)
 

@@ -257,7 +257,7 @@ def test_visibility_matches_reference_and_kernel(pose, landmarks, fov, max_range
     sensor = RangeBearingSensor(fov=fov, max_range=max_range)
     ref = visibility_ref(pose, landmarks, fov, max_range)
     seen = sensor.visible(pose, landmarks)
-    kernel = np.array([in_view(pose, m, fov, max_range) for m in landmarks])
+    kernel = np.array([in_view(*pose, *m, fov, max_range) for m in landmarks])
     # the package may disagree with the reference only within rounding of a boundary
     d = landmarks - pose[:2]
     margin = np.minimum(

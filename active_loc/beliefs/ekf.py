@@ -224,6 +224,20 @@ class EKFBelief:
         self.sensor = sensor
         self.last_nis = np.zeros(self.mean.shape[0])
 
+    @classmethod
+    def wrap(
+        cls, mean: NDArray, cov: NDArray, motion: UnicycleModel, sensor: LandmarkSensor
+    ) -> EKFBelief:
+        """A belief that works in place on the given ``(B, 3)`` and ``(B, 3, 3)`` arrays
+        (views into a larger state, say), without copying or validating them."""
+        out = cls.__new__(cls)
+        out.mean = mean
+        out.cov = cov
+        out.motion = motion
+        out.sensor = sensor
+        out.last_nis = np.zeros(mean.shape[0])
+        return out
+
     @property
     def batch_size(self) -> int:
         return int(self.mean.shape[0])
@@ -250,10 +264,7 @@ class EKFBelief:
         return gaussian_entropy(self.cov)
 
     def copy(self) -> EKFBelief:
-        out = EKFBelief.__new__(EKFBelief)
-        out.mean = self.mean.copy()
-        out.cov = self.cov.copy()
-        out.motion = self.motion
-        out.sensor = self.sensor
+        """An independent belief with copies of the arrays."""
+        out = EKFBelief.wrap(self.mean.copy(), self.cov.copy(), self.motion, self.sensor)
         out.last_nis = self.last_nis.copy()
         return out

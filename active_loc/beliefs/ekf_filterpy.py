@@ -61,6 +61,11 @@ class FilterpyEKFBelief:
     def batch_size(self) -> int:
         return 1
 
+    def set(self, mean: ArrayLike, cov: ArrayLike) -> None:
+        """Restart the filter at mean ``(3,)`` and covariance ``(3, 3)``."""
+        self.filter.x = np.array(mean, dtype=np.float64).reshape(3, 1)
+        self.filter.P = np.array(cov, dtype=np.float64).reshape(3, 3)
+
     @property
     def mean(self) -> NDArray[np.float64]:
         return self.filter.x.reshape(1, 3)

@@ -10,6 +10,12 @@ With the numba EKF this is one fused kernel call for the whole batch. With the f
 backend the simulation and observation kernels run around filterpy's predict/update.
 The single env is this core with B = 1; a vector env is the same code with B = n.
 
+State layout: every per-member float lives in one row of ``state`` ``(B, STATE_SIZE)`` (true
+pose, belief mean and covariance, map box, noise cursor, metrics) and every per-landmark one in
+``world`` ``(B, N, WORLD_SIZE)`` (position, measurement, visibility), at the offsets named
+below; the holder exposes them as named views (``core.pose``, ``core.z``, ...). Few arrays make
+the kernel call cheap, which matters at a few microseconds per step.
+
 Randomness: each member owns a ``numpy.random.Generator`` (the env's ``np_random``). Step noise
 is drawn from it in blocks of :data:`NOISE_BLOCK` steps (motion then measurement normals per
 step) and consumed by the kernel, which is both fast and exactly reproducible.
@@ -65,14 +71,20 @@ TEXTBOOK_BOUNDS = (-2.0, -2.0, 14.0, 14.0)
     P_LOC_HEAD,
     P_TOL_POS,
     P_TOL_HEAD,
-) = range(14)
-P_Q, P_QROOT, P_R, P_RROOT = 14, 23, 32, 36
-N_PARAMS = 40
+    P_RUN_EKF,
+) = range(15)
+P_Q, P_QROOT, P_R, P_RROOT = 15, 24, 33, 37
+N_PARAMS = 41
 
-# layout of the per-member map box: bounds, walls flag, landmark count
+# layout of a row of ``state``
+X_POSE, X_MEAN, X_COV, X_BOX, X_NOISE_ROW, X_STATS = 0, 3, 6, 15, 21, 22
+# within the map box: bounds (x_min, y_min, x_max, y_max), walls flag, landmark count
 B_WALLS, B_COUNT = 4, 5
+# layout of a landmark's entry in ``world``: position (2), measurement (2), visible (0 / 1)
+W_LANDMARK, W_Z, W_VISIBLE = 0, 2, 4
+WORLD_SIZE = 5
 
-# layout of the per-step metrics row
+# layout of the metrics at ``state[:, X_STATS:]``
 (
     S_ENTROPY,
     S_LOGDET,
@@ -89,6 +101,7 @@ B_WALLS, B_COUNT = 4, 5
     S_SUCCESS,
 ) = range(13)
 N_STATS = 13
+STATE_SIZE = X_STATS + N_STATS
 
 
 @dataclass(frozen=True)
@@ -129,6 +142,7 @@ def build_models(cfg: LandmarkEnvConfig) -> LandmarkModels:
     params[P_LOC_HEAD] = cfg.localized_heading_std
     params[P_TOL_POS] = cfg.success_position_tol
     params[P_TOL_HEAD] = cfg.success_heading_tol
+    params[P_RUN_EKF] = 1.0 if cfg.ekf_backend == "numba" else 0.0
     params[P_Q : P_Q + 9] = motion.noise_cov.ravel()
     params[P_QROOT : P_QROOT + 9] = motion.noise_root.ravel()
     params[P_R : P_R + 4] = sensor.noise_cov.ravel()
@@ -176,48 +190,40 @@ def _decode(action: NDArray, params: NDArray) -> tuple[float, float]:
 
 @numba.njit(cache=True)
 def _simulate_one(
-    pose: NDArray,
-    v: float,
-    omega: float,
-    noise: NDArray,
-    params: NDArray,
-    landmarks: NDArray,
-    box: NDArray,
-    z: NDArray,
-    visible: NDArray,
+    v: float, omega: float, noise: NDArray, params: NDArray, state: NDArray, world: NDArray
 ) -> bool:
-    """Move the true robot with noise, then scan; returns whether the move was blocked."""
+    """Move the true robot with noise, then scan; returns whether the move was blocked.
+
+    ``state`` is one row ``(STATE_SIZE,)``, ``world`` one member ``(N, WORLD_SIZE)``, ``noise``
+    one row of normals (3 for the motion, then 2 per landmark).
+    """
     # motion noise L_Q e from the row's first three normals (L_Q row-major in params)
     q = P_QROOT
     e_x = params[q] * noise[0] + params[q + 1] * noise[1] + params[q + 2] * noise[2]
     e_y = params[q + 3] * noise[0] + params[q + 4] * noise[1] + params[q + 5] * noise[2]
     e_t = params[q + 6] * noise[0] + params[q + 7] * noise[1] + params[q + 8] * noise[2]
+    pose = state[X_POSE : X_POSE + 3]
+    box = state[X_BOX : X_BOX + 6]
     collided = move_within_bounds_scalar(
         pose, v, omega, params[P_DT], e_x, e_y, e_t, box[:4], box[B_WALLS] > 0.5
     )
     r = P_RROOT
     measure_landmarks(
-        int(params[P_KIND]), pose, landmarks, int(box[B_COUNT]), params[P_FOV], params[P_RANGE],
-        (params[r], params[r + 2], params[r + 3]), noise[3:], z, visible,
+        int(params[P_KIND]), pose, world[:, W_LANDMARK : W_LANDMARK + 2], int(box[B_COUNT]),
+        params[P_FOV], params[P_RANGE], (params[r], params[r + 2], params[r + 3]), noise[3:],
+        world[:, W_Z : W_Z + 2], world[:, W_VISIBLE],
     )
     return collided
 
 
 @numba.njit(cache=True)
-def _finish_one(
-    pose: NDArray,
-    mean: NDArray,
-    cov: NDArray,
-    z: NDArray,
-    visible: NDArray,
-    landmarks: NDArray,
-    box: NDArray,
-    params: NDArray,
-    stats: NDArray,
-    obs: NDArray,
-) -> None:
+def _finish_one(params: NDArray, state: NDArray, world: NDArray, obs: NDArray) -> None:
     """Metrics of the belief (errors against the truth are for info only), the uncertainty
-    reward term against the previous values still in ``stats``, and the observation row."""
+    reward term against the previous values still in the row, and the observation row."""
+    pose = state[X_POSE : X_POSE + 3]
+    mean = state[X_MEAN : X_MEAN + 3]
+    cov = state[X_COV : X_COV + 9].reshape(3, 3)
+    stats = state[X_STATS : X_STATS + N_STATS]
     det = det3(cov)
     logdet = np.log(det) if det > 0 else -np.inf
     entropy = 0.5 * (LOG_2PIE_3 + logdet)
@@ -244,100 +250,70 @@ def _finish_one(
     success = localized and pos_err <= params[P_TOL_POS] and head_err <= params[P_TOL_HEAD]
     stats[S_LOCALIZED] = 1.0 if localized else 0.0
     stats[S_SUCCESS] = 1.0 if success else 0.0
-    count = 0
-    for j in range(visible.shape[0]):
-        if visible[j]:
-            count += 1
-    stats[S_N_VISIBLE] = count
+    visible = world[:, W_VISIBLE]
+    stats[S_N_VISIBLE] = visible.sum()
     write_belief_observation(
-        mean, cov, entropy, z, visible, landmarks, int(box[B_COUNT]), box, int(params[P_KIND]),
-        params[P_SCALE], obs,
+        mean, cov, entropy, world[:, W_Z : W_Z + 2], visible,
+        world[:, W_LANDMARK : W_LANDMARK + 2], int(state[X_BOX + B_COUNT]),
+        state[X_BOX : X_BOX + 4], int(params[P_KIND]), params[P_SCALE], obs,
     )
 
 
 @numba.njit(cache=True)
 def step_batch(
-    actions: NDArray,
-    params: NDArray,
-    noise: NDArray,
-    noise_index: NDArray,
-    pose: NDArray,
-    mean: NDArray,
-    cov: NDArray,
-    landmarks: NDArray,
-    box: NDArray,
-    z: NDArray,
-    visible: NDArray,
-    stats: NDArray,
+    actions: NDArray, params: NDArray, noise: NDArray, state: NDArray, world: NDArray,
     obs: NDArray,
-    run_ekf: bool,
 ) -> int:
     """One step of the whole batch.
-
-    Returns -1 on success; the index of a member whose action is not finite; or
-    :data:`NEED_NOISE` when a member's noise block is used up. In the last two cases nothing
-    has been changed.
 
     Args:
         actions: ``(B, 2)`` continuous actions in [-1, 1] (clipped) or, for discrete action
             sets, the primitives' physical controls (V m/s, omega rad/s).
-        params: the packed parameter vector of :func:`build_models`.
-        noise: ``(B, NOISE_BLOCK, 3 + 2 N)`` standard normals; noise_index ``(B,)`` the next
-            row of each member, advanced here.
-        pose: ``(B, 3)`` true poses; mean ``(B, 3)``, cov ``(B, 3, 3)`` beliefs.
-        landmarks: ``(B, N, 2)`` (the first ``count`` rows are real); box ``(B, 6)``: bounds,
-            walls flag and landmark count.
-        z: ``(B, N, 2)``, visible ``(B, N)``: out, the scan.
-        stats: ``(B, N_STATS)`` in (previous values) and out; obs: ``(B, D)`` float32 out.
-        run_ekf: run the numba EKF and finish here; False leaves the belief update to the
-            caller, who then calls :func:`finish_batch`.
+        params: the packed parameter vector of :func:`build_models`; ``P_RUN_EKF`` = 0 leaves
+            the belief update to the caller, who then calls :func:`finish_batch`.
+        noise: ``(B, NOISE_BLOCK, 3 + 2 N)`` standard normals, consumed row by row (the
+            cursor is ``state[:, X_NOISE_ROW]``).
+        state: ``(B, STATE_SIZE)``, world: ``(B, N, WORLD_SIZE)``: updated in place.
+        obs: ``(B, D)`` float32 out.
+
+    Returns:
+        -1 on success; the index of a member whose action is not finite; or
+        :data:`NEED_NOISE` when a member's noise block is used up. In the last two cases
+        nothing has been changed.
     """
     for b in range(actions.shape[0]):
         if not (np.isfinite(actions[b, 0]) and np.isfinite(actions[b, 1])):
             return b
-        if noise_index[b] >= noise.shape[1]:
+        if state[b, X_NOISE_ROW] >= noise.shape[1]:
             return NEED_NOISE
     r = params[P_R : P_R + 4].reshape(2, 2)
     q = params[P_Q : P_Q + 9].reshape(3, 3)
     kind = int(params[P_KIND])  # reshaped once per call, not per member
+    run_ekf = params[P_RUN_EKF] > 0.5
     for b in range(actions.shape[0]):
         v, omega = _decode(actions[b], params)
-        row = noise[b, noise_index[b]]
-        noise_index[b] += 1
-        collided = _simulate_one(
-            pose[b], v, omega, row, params, landmarks[b], box[b], z[b], visible[b]
-        )
-        stats[b, S_COLLIDED] = 1.0 if collided else 0.0
+        row = int(state[b, X_NOISE_ROW])
+        state[b, X_NOISE_ROW] = row + 1
+        collided = _simulate_one(v, omega, noise[b, row], params, state[b], world[b])
+        state[b, X_STATS + S_COLLIDED] = 1.0 if collided else 0.0
         if run_ekf:
+            mean = state[b, X_MEAN : X_MEAN + 3]
+            cov = state[b, X_COV : X_COV + 9].reshape(3, 3)
             # a blocked robot knows it did not advance (bumper, odometry): predict with V = 0
-            ekf_predict(mean[b], cov[b], 0.0 if collided else v, omega, params[P_DT], q)
-            stats[b, S_NIS] = ekf_update(mean[b], cov[b], z[b], visible[b], landmarks[b], kind, r)
-            _finish_one(
-                pose[b], mean[b], cov[b], z[b], visible[b], landmarks[b], box[b], params,
-                stats[b], obs[b],
+            ekf_predict(mean, cov, 0.0 if collided else v, omega, params[P_DT], q)
+            state[b, X_STATS + S_NIS] = ekf_update(
+                mean, cov, world[b, :, W_Z : W_Z + 2], world[b, :, W_VISIBLE],
+                world[b, :, W_LANDMARK : W_LANDMARK + 2], kind, r,
             )
+            _finish_one(params, state[b], world[b], obs[b])
     return -1
 
 
 @numba.njit(cache=True)
-def finish_batch(
-    pose: NDArray,
-    mean: NDArray,
-    cov: NDArray,
-    z: NDArray,
-    visible: NDArray,
-    landmarks: NDArray,
-    box: NDArray,
-    params: NDArray,
-    stats: NDArray,
-    obs: NDArray,
-) -> None:
+def finish_batch(params: NDArray, state: NDArray, world: NDArray, obs: NDArray) -> None:
     """Metrics and observations of the whole batch (after an external belief update)."""
-    for b in range(pose.shape[0]):
-        _finish_one(
-            pose[b], mean[b], cov[b], z[b], visible[b], landmarks[b], box[b], params,
-            stats[b], obs[b],
-        )
+    for b in range(state.shape[0]):
+        _finish_one(params, state[b], world[b], obs[b])
 
 
 @numba.njit(cache=True)
@@ -352,15 +328,8 @@ def reset_member_kernel(
     error_std: NDArray,
     initial_cov: NDArray,
     params: NDArray,
-    pose: NDArray,
-    mean: NDArray,
-    cov: NDArray,
-    landmarks: NDArray,
-    box: NDArray,
-    z: NDArray,
-    visible: NDArray,
-    noise_index: NDArray,
-    stats: NDArray,
+    state: NDArray,
+    world: NDArray,
     obs: NDArray,
 ) -> None:
     """Write a new episode of member ``b`` into the batch arrays.
@@ -374,30 +343,27 @@ def reset_member_kernel(
         initial_cov: ``(3, 3)`` initial belief covariance.
     """
     n = positions.shape[0]
-    landmarks[b] = 0.0
-    landmarks[b, :n] = positions
-    box[b, :4] = bounds
-    box[b, B_WALLS] = 1.0 if walls else 0.0
-    box[b, B_COUNT] = n
+    row = state[b]
+    row[:] = 0.0
+    world[b] = 0.0
+    world[b, :n, W_LANDMARK : W_LANDMARK + 2] = positions
+    row[X_BOX : X_BOX + 4] = bounds
+    row[X_BOX + B_WALLS] = 1.0 if walls else 0.0
+    row[X_BOX + B_COUNT] = n
     if random_start:
         margin = min(1.0, 0.25 * (bounds[2] - bounds[0]), 0.25 * (bounds[3] - bounds[1]))
-        pose[b, 0] = bounds[0] + margin + start[0] * (bounds[2] - bounds[0] - 2 * margin)
-        pose[b, 1] = bounds[1] + margin + start[1] * (bounds[3] - bounds[1] - 2 * margin)
-        pose[b, 2] = -np.pi + 2.0 * np.pi * start[2]
+        row[X_POSE] = bounds[0] + margin + start[0] * (bounds[2] - bounds[0] - 2 * margin)
+        row[X_POSE + 1] = bounds[1] + margin + start[1] * (bounds[3] - bounds[1] - 2 * margin)
+        row[X_POSE + 2] = -np.pi + 2.0 * np.pi * start[2]
     else:
-        pose[b] = start
+        row[X_POSE : X_POSE + 3] = start
     for i in range(3):
-        mean[b, i] = pose[b, i] + error_std[i] * normals[i]
-    mean[b, 2] = wrap_angle_scalar(mean[b, 2])
-    cov[b] = initial_cov
-    z[b] = 0.0
-    visible[b] = False
-    noise_index[b] = NOISE_BLOCK  # the first step draws a fresh noise block
-    stats[b] = 0.0
-    _finish_one(
-        pose[b], mean[b], cov[b], z[b], visible[b], landmarks[b], box[b], params, stats[b], obs[b]
-    )
-    stats[b, S_UNCERTAINTY_REWARD] = 0.0
+        row[X_MEAN + i] = row[X_POSE + i] + error_std[i] * normals[i]
+    row[X_MEAN + 2] = wrap_angle_scalar(row[X_MEAN + 2])
+    row[X_COV : X_COV + 9] = initial_cov.ravel()
+    row[X_NOISE_ROW] = NOISE_BLOCK  # the first step draws a fresh noise block
+    _finish_one(params, row, world[b], obs[b])
+    row[X_STATS + S_UNCERTAINTY_REWARD] = 0.0
 
 
 def executed_controls(actions: NDArray, params: NDArray, collided: NDArray) -> NDArray:
@@ -419,6 +385,9 @@ class LandmarkCore:
     Args:
         config: the task.
         batch_size: B.
+
+    The numba belief's ``mean`` and ``cov`` are views into :attr:`state`; pickling and
+    copying rebuild those views (``__setstate__``).
     """
 
     def __init__(self, config: LandmarkEnvConfig, batch_size: int = 1) -> None:
@@ -436,29 +405,57 @@ class LandmarkCore:
                 "raise max_landmarks"
             )
         self.maps: list[LandmarkMap | None] = [None] * batch_size
-        self.pose = np.zeros((batch_size, 3))
-        self.landmarks = np.zeros((batch_size, n, 2))
-        self.box = np.zeros((batch_size, 6))
-        self.z = np.zeros((batch_size, n, 2))
-        self.visible = np.zeros((batch_size, n), dtype=np.bool_)
-        self.stats = np.zeros((batch_size, N_STATS))
+        self.state = np.zeros((batch_size, STATE_SIZE))
+        self.world = np.zeros((batch_size, n, WORLD_SIZE))
         self.obs = np.zeros((batch_size, belief_observation_size(n)), dtype=np.float32)
         self.noise = np.zeros((batch_size, NOISE_BLOCK, 3 + 2 * n))
-        self.noise_index = np.full(batch_size, NOISE_BLOCK, dtype=np.int64)
         #: the actions of the next step, written by the env: ``(B, 2)``, see :func:`step_batch`
         self.actions = np.zeros((batch_size, 2))
         self._random_start = config.start == "random"
         self._start_pose = np.array(config.start_pose, dtype=np.float64)
         self._error_std = np.array(config.initial_error_std, dtype=np.float64)
         self._initial_cov = np.diag(np.square(config.initial_belief_std))
-        mean0 = np.zeros((batch_size, 3))
-        cov0 = np.broadcast_to(np.diag(np.square(config.initial_belief_std)), (batch_size, 3, 3))
+        self.state[:, X_NOISE_ROW] = NOISE_BLOCK
+        self.state[:, X_COV : X_COV + 9] = self._initial_cov.ravel()
         self.belief: EKFBelief | FilterpyEKFBelief
         if config.ekf_backend == "filterpy":
-            self.belief = FilterpyEKFBelief(mean0, cov0, self.models.motion, self.models.sensor)
+            self.belief = FilterpyEKFBelief(
+                np.zeros(3), self._initial_cov, self.models.motion, self.models.sensor
+            )
         else:
-            self.belief = EKFBelief(mean0, cov0, self.models.motion, self.models.sensor)
-        self._bind_kernel_args()
+            self._bind_belief()
+
+    # -- named views of the packed arrays ------------------------------------------------------
+
+    @property
+    def pose(self) -> NDArray[np.float64]:
+        """``(B, 3)`` true poses (a view)."""
+        return self.state[:, X_POSE : X_POSE + 3]
+
+    @property
+    def stats(self) -> NDArray[np.float64]:
+        """``(B, N_STATS)`` metrics of the last step (a view)."""
+        return self.state[:, X_STATS : X_STATS + N_STATS]
+
+    @property
+    def landmarks(self) -> NDArray[np.float64]:
+        """``(B, N, 2)`` landmark positions, zero-padded (a view)."""
+        return self.world[:, :, W_LANDMARK : W_LANDMARK + 2]
+
+    @property
+    def z(self) -> NDArray[np.float64]:
+        """``(B, N, 2)`` the last scan, zero where unseen (a view)."""
+        return self.world[:, :, W_Z : W_Z + 2]
+
+    @property
+    def visible(self) -> NDArray[np.bool_]:
+        """``(B, N)`` which landmarks the last scan saw (a copy)."""
+        return self.world[:, :, W_VISIBLE] > 0.5
+
+    @property
+    def noise_index(self) -> NDArray[np.float64]:
+        """``(B,)`` the next noise row of each member (a view)."""
+        return self.state[:, X_NOISE_ROW]
 
     # -- reset ---------------------------------------------------------------------------------
 
@@ -474,16 +471,18 @@ class LandmarkCore:
         normals = rng.standard_normal(3)
         reset_member_kernel(
             b, lmap.positions, np.asarray(lmap.bounds), lmap.walls, self._random_start, uniforms,
-            normals, self._error_std, self._initial_cov, self.models.params, self.pose,
-            self.belief.mean, self.belief.cov, self.landmarks, self.box, self.z, self.visible,
-            self.noise_index, self.stats, self.obs,
+            normals, self._error_std, self._initial_cov, self.models.params, self.state,
+            self.world, self.obs,
         )
-        self._bind_kernel_args()
+        if isinstance(self.belief, FilterpyEKFBelief):
+            self.belief.set(self.state[b, X_MEAN : X_MEAN + 3], self._initial_cov)
+
+    # -- step ----------------------------------------------------------------------------------
 
     def refill_noise(self, b: int, rng: np.random.Generator) -> None:
         """Draw the next block of step noise of member ``b`` from its Generator."""
         self.noise[b] = rng.standard_normal(self.noise.shape[1:])
-        self.noise_index[b] = 0
+        self.state[b, X_NOISE_ROW] = 0
 
     def step(self, rngs: Sequence[np.random.Generator]) -> int:
         """Advance every member with the actions in :attr:`actions` ``(B, 2)``.
@@ -494,28 +493,38 @@ class LandmarkCore:
         Returns:
             -1, or the index of a member whose action is not finite (nothing advanced then).
         """
-        code = step_batch(*self._kernel_args)
+        params = self.models.params
+        code = step_batch(self.actions, params, self.noise, self.state, self.world, self.obs)
         if code == NEED_NOISE:
-            for b in np.flatnonzero(self.noise_index >= NOISE_BLOCK):
+            for b in np.flatnonzero(self.state[:, X_NOISE_ROW] >= NOISE_BLOCK):
                 self.refill_noise(int(b), rngs[b])
-            code = step_batch(*self._kernel_args)
-        if code >= 0 or self._fused:
+            code = step_batch(self.actions, params, self.noise, self.state, self.world, self.obs)
+        if code >= 0 or params[P_RUN_EKF] > 0.5:
             return code
-        collided = self.stats[:, S_COLLIDED] > 0.5
-        self.belief.predict(executed_controls(self.actions, self.models.params, collided))
-        self.belief.update(self.z, self.visible, self.landmarks)
-        self.stats[:, S_NIS] = self.belief.last_nis
-        finish_batch(
-            self.pose, self.belief.mean, self.belief.cov, self.z, self.visible, self.landmarks,
-            self.box, self.models.params, self.stats, self.obs,
-        )
+        collided = self.state[:, X_STATS + S_COLLIDED] > 0.5
+        belief = self.belief
+        belief.predict(executed_controls(self.actions, params, collided))
+        belief.update(self.z, self.visible, self.landmarks)
+        self.state[:, X_MEAN : X_MEAN + 3] = belief.mean
+        self.state[:, X_COV : X_COV + 9] = belief.cov.reshape(-1, 9)
+        self.state[:, X_STATS + S_NIS] = belief.last_nis
+        finish_batch(params, self.state, self.world, self.obs)
         return -1
 
-    def _bind_kernel_args(self) -> None:
-        """The argument tuple of :func:`step_batch`, built once: the arrays are persistent."""
-        self._fused = not isinstance(self.belief, FilterpyEKFBelief)
-        self._kernel_args = (
-            self.actions, self.models.params, self.noise, self.noise_index, self.pose,
-            self.belief.mean, self.belief.cov, self.landmarks, self.box, self.z, self.visible,
-            self.stats, self.obs, self._fused,
-        )
+    # -- the numba belief's arrays are views of the state -------------------------------------
+
+    def _bind_belief(self) -> None:
+        mean = self.state[:, X_MEAN : X_MEAN + 3]
+        cov = self.state[:, X_COV : X_COV + 9].reshape(self.batch_size, 3, 3)
+        self.belief = EKFBelief.wrap(mean, cov, self.models.motion, self.models.sensor)
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        if isinstance(self.belief, EKFBelief):
+            del state["belief"]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        if "belief" not in state:
+            self._bind_belief()

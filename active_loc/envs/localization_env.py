@@ -20,11 +20,23 @@ from active_loc.envs.landmark_core import (
     S_POS_ERR,
     S_SUCCESS,
     S_UNCERTAINTY_REWARD,
+    X_STATS,
     LandmarkCore,
 )
 from active_loc.envs.observations import belief_observation_space
 from active_loc.envs.planner_view import PlannerView
 from active_loc.scenarios import scenario_kwargs
+
+# offsets of the metrics in a row of the core's state
+_ENTROPY = X_STATS + S_ENTROPY
+_POS_ERR = X_STATS + S_POS_ERR
+_HEAD_ERR = X_STATS + S_HEAD_ERR
+_COLLIDED = X_STATS + S_COLLIDED
+_LOCALIZED = X_STATS + S_LOCALIZED
+_SUCCESS = X_STATS + S_SUCCESS
+_UNCERTAINTY = X_STATS + S_UNCERTAINTY_REWARD
+_N_VISIBLE = X_STATS + S_N_VISIBLE
+_NIS = X_STATS + S_NIS
 
 
 class ActiveLocalizationEnv(gym.Env):
@@ -123,6 +135,7 @@ class ActiveLocalizationEnv(gym.Env):
         self._step_cost = float(self.config.step_cost)
         self._collision_penalty = float(self.config.collision_penalty)
         self._terminate_when_localized = bool(self.config.terminate_when_localized)
+        self._rngs: tuple[np.random.Generator, ...] = ()
         self._steps = 0
         self._collisions = 0
         self._renderer: Any = None
@@ -137,13 +150,15 @@ class ActiveLocalizationEnv(gym.Env):
     ) -> tuple[NDArray[np.float32], dict[str, Any]]:
         super().reset(seed=seed)
         self.core.reset_member(0, self.np_random)
+        self._rngs = (self.np_random,)
         self._steps = 0
         self._collisions = 0
         self._has_reset = True
         if self.render_mode is not None:
             self._true_path = [self.core.pose[0, :2].copy()]
             self._belief_path = [self.core.belief.mean[0, :2].copy()]
-        info = self._info(self.core.stats[0].tolist())
+        row = self.core.state[0].tolist()
+        info = self._info(row, False, row[_UNCERTAINTY])
         if self.render_mode == "human":
             self.render()
         return self.core.obs[0].copy(), info
@@ -153,21 +168,27 @@ class ActiveLocalizationEnv(gym.Env):
     ) -> tuple[NDArray[np.float32], float, bool, bool, dict[str, Any]]:
         if not self._has_reset:
             raise RuntimeError("call reset() before step()")
-        self._write_action(action)
         core = self.core
-        if core.step((self.np_random,)) >= 0:
+        if self._continuous:
+            self._write_continuous(action)
+        else:
+            self._write_discrete(action)
+        if core.step(self._rngs) >= 0:
             raise ValueError(f"action contains NaN or inf: {action!r}")
         self._steps += 1
-        stats = core.stats[0].tolist()
-        self._collisions += stats[S_COLLIDED] > 0.5
-        info = self._info(stats)
-        reward = sum(info["reward_terms"].values())
-        terminated = self._terminate_when_localized and info["localized"]
+        row = core.state[0].tolist()
+        collided = row[_COLLIDED] > 0.5
+        if collided:
+            self._collisions += 1
+        uncertainty = row[_UNCERTAINTY]
+        info = self._info(row, collided, uncertainty)
+        reward = uncertainty - self._step_cost - (self._collision_penalty if collided else 0.0)
         if self.render_mode is not None:
             self._true_path.append(core.pose[0, :2].copy())
             self._belief_path.append(core.belief.mean[0, :2].copy())
             if self.render_mode == "human":
                 self.render()
+        terminated = self._terminate_when_localized and info["localized"]
         return core.obs[0].copy(), reward, terminated, False, info
 
     def render(self) -> NDArray[np.uint8] | None:
@@ -211,21 +232,22 @@ class ActiveLocalizationEnv(gym.Env):
 
     # -- helpers ----------------------------------------------------------------------------
 
-    def _write_action(self, action: Any) -> None:
-        """Validate an action and write its kernel form into ``core.actions[0]``."""
-        if self._continuous:
-            shape = getattr(action, "shape", None)
-            if shape is None:
-                action = np.asarray(action, dtype=np.float64)
-                shape = action.shape
-            if shape != (2,):
-                raise ValueError(
-                    f"action must have shape (2,) for action_type='continuous', got {shape}"
-                )
-            if action.dtype.kind not in "fiu":
-                raise ValueError(f"action must be real numbers, got dtype {action.dtype}")
-            self.core.actions[0] = action
-            return
+    def _write_continuous(self, action: Any) -> None:
+        """Validate a continuous action and write it into ``core.actions[0]``."""
+        shape = getattr(action, "shape", None)
+        if shape is None:
+            action = np.asarray(action)
+            shape = action.shape
+        if shape != (2,):
+            raise ValueError(
+                f"action must have shape (2,) for action_type='continuous', got {shape}"
+            )
+        if action.dtype.kind not in "fiu":
+            raise ValueError(f"action must be real numbers, got dtype {action.dtype}")
+        self.core.actions[0] = action
+
+    def _write_discrete(self, action: Any) -> None:
+        """Validate a discrete action and write its primitive's control."""
         if not _is_integer(action):
             raise ValueError(
                 f"action must be an integer index for action_type='discrete', got {action!r}"
@@ -235,22 +257,22 @@ class ActiveLocalizationEnv(gym.Env):
             raise ValueError(f"action must be an integer in [0, {self._n_actions}), got {index}")
         self.core.actions[0] = self.core.models.primitives[index]
 
-    def _info(self, stats: list[float]) -> dict[str, Any]:
-        collided = stats[S_COLLIDED] > 0.5
+    def _info(self, row: list[float], collided: bool, uncertainty: float) -> dict[str, Any]:
+        """The info dict from a row of the core's state (as a list of floats)."""
         return {
-            "pose_error": stats[S_POS_ERR],
-            "heading_error": stats[S_HEAD_ERR],
-            "entropy": stats[S_ENTROPY],
-            "localized": stats[S_LOCALIZED] > 0.5,
-            "is_success": stats[S_SUCCESS] > 0.5,
+            "pose_error": row[_POS_ERR],
+            "heading_error": row[_HEAD_ERR],
+            "entropy": row[_ENTROPY],
+            "localized": row[_LOCALIZED] > 0.5,
+            "is_success": row[_SUCCESS] > 0.5,
             "collisions": self._collisions,
             "reward_terms": {
-                self._reward_name: stats[S_UNCERTAINTY_REWARD],
+                self._reward_name: uncertainty,
                 "step_cost": -self._step_cost,
                 "collision": -self._collision_penalty if collided else 0.0,
             },
-            "n_visible": int(stats[S_N_VISIBLE]),
-            "nis": stats[S_NIS],
+            "n_visible": int(row[_N_VISIBLE]),
+            "nis": row[_NIS],
         }
 
     def _frame(self) -> Any:
@@ -272,7 +294,7 @@ class ActiveLocalizationEnv(gym.Env):
             fov=self.config.fov,
             max_range=self.config.max_range,
             step=self._steps,
-            entropy=float(core.stats[0, S_ENTROPY]),
+            entropy=float(core.state[0, _ENTROPY]),
             title=self.spec.id if self.spec is not None else type(self).__name__,
         )
 

@@ -52,6 +52,19 @@ class LandmarkMap:
         object.__setattr__(self, "positions", positions)
         object.__setattr__(self, "bounds", (x_min, y_min, x_max, y_max))
 
+    @classmethod
+    def trusted(
+        cls, positions: NDArray, bounds: tuple[float, float, float, float], walls: bool
+    ) -> LandmarkMap:
+        """A map from values already known to be valid (a generator's output): no checks, so
+        that drawing a map every episode stays cheap."""
+        out = cls.__new__(cls)
+        positions.setflags(write=False)
+        object.__setattr__(out, "positions", positions)
+        object.__setattr__(out, "bounds", bounds)
+        object.__setattr__(out, "walls", walls)
+        return out
+
     @property
     def n_landmarks(self) -> int:
         return int(self.positions.shape[0])
@@ -101,43 +114,48 @@ def random_landmark_map(
         count = int(n_landmarks)
         if count < 1:
             raise ValueError(f"random_landmark_map: n_landmarks must be >= 1, got {count}")
-    # rejection sampling: candidates drawn in blocks, accepted greedily in order
-    low = np.array([margin, margin])
-    span = np.array([width - 2 * margin, height - 2 * margin])
-    candidates = np.empty((0, 2))
-    chosen = candidates
-    for _ in range(6):
-        block = low + span * rng.random((8 * count * max(1, len(candidates) // count), 2))
-        candidates = np.concatenate([candidates, block])
-        chosen = _first_separated(candidates, count, min_separation)
+    # rejection sampling: uniform candidates accepted greedily in order; a block of 16 per
+    # landmark nearly always suffices, and the rare shortfall draws a longer sequence
+    uniforms = rng.random((16 * count, 2))
+    chosen = _first_separated(uniforms, count, min_separation, margin, width, height)
+    for _ in range(4):
         if chosen.shape[0] == count:
             break
+        uniforms = np.concatenate([uniforms, rng.random((8 * len(uniforms), 2))])
+        chosen = _first_separated(uniforms, count, min_separation, margin, width, height)
     if chosen.shape[0] < count:
         raise ValueError(
             f"random_landmark_map: could not place {count} landmarks {min_separation} m apart "
             f"in {size}"
         )
-    return LandmarkMap(chosen, (0.0, 0.0, width, height), walls=walls)
+    return LandmarkMap.trusted(chosen, (0.0, 0.0, width, height), walls)
 
 
 @numba.njit(cache=True)
-def _first_separated(candidates: NDArray, count: int, min_separation: float) -> NDArray:
-    """The first ``count`` rows of ``candidates`` ``(M, 2)`` that keep ``min_separation`` (m)
-    from every row accepted before them (fewer if the candidates run out)."""
+def _first_separated(
+    uniforms: NDArray, count: int, min_separation: float, margin: float, width: float,
+    height: float,
+) -> NDArray:
+    """Scale ``uniforms`` ``(M, 2)`` in [0, 1) to points in ``[margin, size - margin]`` and
+    return the first ``count`` that keep ``min_separation`` (m) from every point accepted before
+    them (fewer if the candidates run out)."""
     chosen = np.empty((count, 2))
     n = 0
     limit = min_separation * min_separation
-    for i in range(candidates.shape[0]):
+    for i in range(uniforms.shape[0]):
         if n == count:
             break
+        x = margin + uniforms[i, 0] * (width - 2 * margin)
+        y = margin + uniforms[i, 1] * (height - 2 * margin)
         ok = True
         for j in range(n):
-            dx = candidates[i, 0] - chosen[j, 0]
-            dy = candidates[i, 1] - chosen[j, 1]
+            dx = x - chosen[j, 0]
+            dy = y - chosen[j, 1]
             if dx * dx + dy * dy < limit:
                 ok = False
                 break
         if ok:
-            chosen[n] = candidates[i]
+            chosen[n, 0] = x
+            chosen[n, 1] = y
             n += 1
     return chosen[:n].copy()

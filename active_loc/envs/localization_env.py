@@ -135,7 +135,6 @@ class ActiveLocalizationEnv(gym.Env):
         self._step_cost = float(self.config.step_cost)
         self._collision_penalty = float(self.config.collision_penalty)
         self._terminate_when_localized = bool(self.config.terminate_when_localized)
-        self._rngs: tuple[np.random.Generator, ...] = ()
         self._steps = 0
         self._collisions = 0
         self._renderer: Any = None
@@ -150,7 +149,6 @@ class ActiveLocalizationEnv(gym.Env):
     ) -> tuple[NDArray[np.float32], dict[str, Any]]:
         super().reset(seed=seed)
         self.core.reset_member(0, self.np_random)
-        self._rngs = (self.np_random,)
         self._steps = 0
         self._collisions = 0
         self._has_reset = True
@@ -173,7 +171,7 @@ class ActiveLocalizationEnv(gym.Env):
             self._write_continuous(action)
         else:
             self._write_discrete(action)
-        if core.step(self._rngs) >= 0:
+        if core.step((self.np_random,)) >= 0:
             raise ValueError(f"action contains NaN or inf: {action!r}")
         self._steps += 1
         row = core.state[0].tolist()

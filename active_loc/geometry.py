@@ -17,16 +17,20 @@ TWO_PI = 2.0 * np.pi
 
 
 def wrap_angle(angle: ArrayLike) -> NDArray[np.float64]:
-    """Wrap angles (rad) to ``[-pi, pi)``; shape is kept."""
+    """Wrap angles (rad) to ``[-pi, pi)``; shape is kept. Angles already in range are
+    returned unchanged (bit for bit), so wrapping twice is wrapping once."""
     angle = np.asarray(angle, dtype=np.float64)
     wrapped = (angle + np.pi) % TWO_PI - np.pi
     # float rounding can land exactly on +pi for angles just below -pi
-    return np.where(wrapped >= np.pi, wrapped - TWO_PI, wrapped)
+    wrapped = np.where(wrapped >= np.pi, wrapped - TWO_PI, wrapped)
+    return np.where((angle >= -np.pi) & (angle < np.pi), angle, wrapped)
 
 
 @numba.njit(cache=True, inline="always")
 def wrap_angle_scalar(angle: float) -> float:
     """Wrap one angle (rad) to ``[-pi, pi)``; the kernel twin of :func:`wrap_angle`."""
+    if -np.pi <= angle < np.pi:
+        return angle  # the common case, and exact
     wrapped = (angle + np.pi) % TWO_PI - np.pi
     # float rounding can land exactly on +pi for angles just below -pi
     if wrapped >= np.pi:

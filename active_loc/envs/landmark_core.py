@@ -395,6 +395,7 @@ class LandmarkCore:
             raise ValueError("ekf_backend='filterpy' runs single envs only (batch size 1)")
         self.config = config
         self.models = build_models(config)
+        self._fused = config.ekf_backend == "numba"  # the kernel runs the EKF itself
         self.batch_size = batch_size
         n = config.max_landmarks
         draws_maps = isinstance(config.map, str) and config.map == "random"
@@ -499,7 +500,7 @@ class LandmarkCore:
             for b in np.flatnonzero(self.state[:, X_NOISE_ROW] >= NOISE_BLOCK):
                 self.refill_noise(int(b), rngs[b])
             code = step_batch(self.actions, params, self.noise, self.state, self.world, self.obs)
-        if code >= 0 or params[P_RUN_EKF] > 0.5:
+        if code >= 0 or self._fused:
             return code
         collided = self.state[:, X_STATS + S_COLLIDED] > 0.5
         belief = self.belief

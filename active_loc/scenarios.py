@@ -1,6 +1,6 @@
 """The taxonomy of the chapter as presets: keyword overrides of the env configuration.
 
-Each scenario is a dict of :class:`active_loc.envs.config.LandmarkEnvConfig` fields; the env
+Each scenario is a dict of :class:`active_loc.envs.config.LocalizationConfig` fields; the env
 ids are registered with one of them, and ``gymnasium.make(id, **kwargs)`` overrides any field.
 """
 

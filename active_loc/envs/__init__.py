@@ -1,7 +1,7 @@
 """Gymnasium environments of active localization."""
 
-from active_loc.envs.config import LandmarkEnvConfig
+from active_loc.envs.config import LocalizationConfig
 from active_loc.envs.localization_env import ActiveLocalizationEnv
 from active_loc.envs.planner_view import PlannerView
 
-__all__ = ["ActiveLocalizationEnv", "LandmarkEnvConfig", "PlannerView"]
+__all__ = ["ActiveLocalizationEnv", "LocalizationConfig", "PlannerView"]

@@ -1,4 +1,4 @@
-"""Configuration of the landmark localization environments: one frozen dataclass.
+"""Configuration of the localization environments: one frozen dataclass for every env id.
 
 Every field has a documented default and unit; ``gymnasium.make(id, **kwargs)`` passes kwargs
 straight into it (over the scenario's preset), and a bad value raises ``ValueError`` naming the
@@ -13,11 +13,16 @@ from typing import Any
 
 import numpy as np
 
-from active_loc.maps import LandmarkMap
+from active_loc.maps import LandmarkMap, OccupancyGrid
 
-BELIEFS = ("ekf",)
+BELIEFS = ("ekf", "mcl")
 EKF_BACKENDS = ("numba", "filterpy")
-SENSORS = ("range_bearing", "relative_position")
+SENSORS = ("range_bearing", "relative_position", "lidar")
+LANDMARK_MAPS = ("random", "textbook")
+GRID_MAPS = ("rooms", "symmetric_rooms", "pillars", "maze")
+INITIAL_BELIEFS = ("gaussian", "uniform")
+LIDAR_MODELS = ("likelihood_field", "beam")
+RESAMPLING = ("systematic", "stratified")
 ACTION_TYPES = ("continuous", "discrete")
 OBSERVATIONS = ("belief",)
 REWARDS = ("info_gain", "neg_entropy", "logdet", "trace")
@@ -25,12 +30,14 @@ STARTS = ("random", "fixed")
 
 
 @dataclass(frozen=True)
-class LandmarkEnvConfig:
-    """Everything that defines a landmark localization task."""
+class LocalizationConfig:
+    """Everything that defines a localization task."""
 
     # --- map -----------------------------------------------------------------------------
-    # "random": a new seeded random landmark map every episode; "textbook": the four
-    # landmarks of the chapter's exercise; or a LandmarkMap / (N, 2) array of positions
+    # landmark maps: "random" (a new seeded random landmark map every episode), "textbook"
+    # (the four landmarks of the chapter's exercise), a LandmarkMap or an (N, 2) array;
+    # grid maps (with sensor="lidar"): a generator name of GRID_MAPS (a new seeded map every
+    # episode), an OccupancyGrid, or a path to a ROS map_server YAML file
     map: Any = "random"
     map_size: tuple[float, float] = (20.0, 20.0)  # random maps: width, height (m)
     n_landmarks: tuple[int, int] = (8, 15)  # random maps: inclusive range of the count
@@ -53,12 +60,30 @@ class LandmarkEnvConfig:
     position_std: float = 0.5  # relative_position: noise std per axis (m); R = std^2 I
     fov: float = math.pi / 2  # field of view (rad), centred on the heading; 2*pi = all round
     max_range: float = 6.0  # maximum range (m); inf for unlimited
+    known_correspondences: bool = True  # False: identical-looking landmarks (no ids)
+    n_beams: int = 60  # lidar: beams evenly spread over the field of view
+    lidar_model: str = "likelihood_field"  # the filter's lidar model, or "beam"
+    lidar_sigma_hit: float = 0.2  # lidar: std of a hit reading (m)
+    # lidar mixture weights (hit, short, max, random), summing to 1, for the simulated sensor
+    # and the beam model; the likelihood field uses hit and random only
+    lidar_mixture: tuple[float, float, float, float] = (0.9, 0.04, 0.03, 0.03)
+    lidar_lambda_short: float = 0.1  # rate of the short-reading exponential (1/m)
+    unknown_reflects: bool = True  # whether unknown grid cells stop lidar beams
 
     # --- belief --------------------------------------------------------------------------
     belief: str = "ekf"
     ekf_backend: str = "numba"  # "filterpy" runs the reference implementation (single envs)
     initial_error_std: tuple[float, float, float] = (0.5, 0.5, 0.3)  # true - mean at reset
     initial_belief_std: tuple[float, float, float] = (0.5, 0.5, 0.3)  # sqrt diag Sigma_0
+    # "gaussian": N(mean, Sigma_0) as above (pose tracking); "uniform": the whole free space,
+    # any heading (global localization; MCL only)
+    initial_belief: str = "gaussian"
+    n_particles: int = 1000  # MCL: particle count (the maximum with KLD sampling)
+    resampling: str = "systematic"  # MCL: "systematic" (low variance) or "stratified"
+    resample_threshold: float = 0.5  # MCL: resample when ESS < threshold * particles
+    augmented: bool = False  # MCL: random-particle injection (augmented MCL, for kidnapping)
+    kld: bool = False  # MCL: KLD-sampling adaptive particle count
+    min_particles: int = 100  # MCL with KLD: the minimum count (AMCL's default)
 
     # --- agent interface -----------------------------------------------------------------
     action_type: str = "continuous"  # "continuous": Box(-1, 1, (2,)); "discrete": primitives
@@ -74,6 +99,13 @@ class LandmarkEnvConfig:
     success_position_tol: float = 0.3  # success: confident and position error below (m)
     success_heading_tol: float = 0.15  # ... and heading error below (rad)
 
+    # --- kidnapping ----------------------------------------------------------------------
+    # once per episode, at a step drawn uniformly in kidnap_window x horizon, the robot is moved
+    # to a random free pose without the filter being told
+    kidnap: bool = False
+    kidnap_window: tuple[float, float] = (0.2, 0.6)
+    horizon: int = 200  # episode length the kidnap window refers to (the registered limit)
+
     def __post_init__(self) -> None:
         _one_of("belief", self.belief, BELIEFS)
         _one_of("ekf_backend", self.ekf_backend, EKF_BACKENDS)
@@ -82,8 +114,24 @@ class LandmarkEnvConfig:
         _one_of("observation", self.observation, OBSERVATIONS)
         _one_of("reward", self.reward, REWARDS)
         _one_of("start", self.start, STARTS)
+        _one_of("initial_belief", self.initial_belief, INITIAL_BELIEFS)
+        _one_of("lidar_model", self.lidar_model, LIDAR_MODELS)
+        _one_of("resampling", self.resampling, RESAMPLING)
         if isinstance(self.map, str):
-            _one_of("map", self.map, ("random", "textbook"))
+            if self.uses_grid:
+                if self.map not in GRID_MAPS and not self.map.endswith((".yaml", ".yml")):
+                    raise ValueError(
+                        f"map={self.map!r}: with sensor='lidar' map must be one of {GRID_MAPS}, "
+                        "an OccupancyGrid or a path to a ROS map YAML file"
+                    )
+            else:
+                _one_of("map", self.map, LANDMARK_MAPS)
+        elif self.uses_grid:
+            if not isinstance(self.map, OccupancyGrid):
+                raise ValueError(
+                    f"with sensor='lidar' map must be a grid map name, an OccupancyGrid or a "
+                    f"path to a ROS map YAML, got {type(self.map).__name__}"
+                )
         elif not isinstance(self.map, LandmarkMap):
             positions = np.asarray(self.map, dtype=np.float64)
             if positions.ndim != 2 or positions.shape[1] != 2 or positions.shape[0] == 0:
@@ -91,9 +139,45 @@ class LandmarkEnvConfig:
                     "map must be 'random', 'textbook', a LandmarkMap or a non-empty (N, 2) "
                     f"array of landmark positions, got shape {positions.shape}"
                 )
+        if self.belief == "ekf" and (self.sensor == "lidar" or self.initial_belief == "uniform"):
+            raise ValueError(
+                "belief='ekf' tracks a Gaussian with landmark sensors; lidar and "
+                "initial_belief='uniform' need belief='mcl'"
+            )
+        if self.belief == "ekf" and not self.known_correspondences:
+            raise ValueError(
+                "known_correspondences=False (identical-looking landmarks) needs belief='mcl'"
+            )
         for f in fields(self):
             if f.type == "float":
                 _number(f.name, getattr(self, f.name))
+        _integer("n_beams", self.n_beams, 1)
+        _integer("n_particles", self.n_particles, 1)
+        _integer("min_particles", self.min_particles, 1)
+        if self.kld and self.min_particles > self.n_particles:
+            raise ValueError(
+                f"min_particles={self.min_particles} must be <= n_particles={self.n_particles}"
+            )
+        _integer("horizon", self.horizon, 1)
+        if not 0 < self.resample_threshold <= 1:
+            raise ValueError(
+                f"resample_threshold must be in (0, 1], got {self.resample_threshold}"
+            )
+        lo, hi = self.kidnap_window
+        if not 0 <= lo <= hi <= 1:
+            raise ValueError(
+                f"kidnap_window must satisfy 0 <= lo <= hi <= 1, got {self.kidnap_window}"
+            )
+        if self.kidnap and self.belief != "mcl":
+            raise ValueError("kidnap=True needs belief='mcl' (the EKF cannot recover from it)")
+        mixture = self.lidar_mixture
+        if len(mixture) != 4 or min(mixture) < 0 or abs(sum(mixture) - 1.0) > 1e-6:
+            raise ValueError(
+                f"lidar_mixture must be 4 weights (hit, short, max, random) >= 0 summing to 1, "
+                f"got {mixture}"
+            )
+        _positive("lidar_sigma_hit", self.lidar_sigma_hit)
+        _positive("lidar_lambda_short", self.lidar_lambda_short)
         _positive("dt", self.dt)
         _positive("v_max", self.v_max, allow_zero=True)
         if not (math.isfinite(self.v_min) and self.v_min <= self.v_max):
@@ -135,6 +219,11 @@ class LandmarkEnvConfig:
                 f"start_pose must be three finite numbers (x, y, theta), got {self.start_pose}"
             )
 
+    @property
+    def uses_grid(self) -> bool:
+        """Whether the task is on an occupancy grid (lidar) rather than a landmark map."""
+        return self.sensor == "lidar"
+
     @classmethod
     def field_names(cls) -> tuple[str, ...]:
         return tuple(f.name for f in fields(cls))
@@ -156,6 +245,11 @@ def _positive(name: str, value: float, allow_zero: bool = False) -> None:
     if not ok:
         bound = ">= 0" if allow_zero else "> 0"
         raise ValueError(f"{name} must be a finite number {bound}, got {value}")
+
+
+def _integer(name: str, value: object, minimum: int) -> None:
+    if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
 
 
 def _stds(name: str, values: tuple[float, ...], allow_zero: bool) -> None:

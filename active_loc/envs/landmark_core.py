@@ -35,7 +35,7 @@ from active_loc.beliefs.ekf import EKFBelief, ekf_predict, ekf_update
 from active_loc.beliefs.ekf_filterpy import FilterpyEKFBelief
 from active_loc.beliefs.entropy import LOG_2PIE_3, det3
 from active_loc.envs.actions import ControlLimits
-from active_loc.envs.config import LandmarkEnvConfig
+from active_loc.envs.config import LocalizationConfig
 from active_loc.envs.observations import belief_observation_size, write_belief_observation
 from active_loc.envs.rewards import REWARD_CODES, uncertainty_reward
 from active_loc.geometry import wrap_angle_scalar
@@ -115,7 +115,7 @@ class LandmarkModels:
     limits: ControlLimits
 
 
-def build_models(cfg: LandmarkEnvConfig) -> LandmarkModels:
+def build_models(cfg: LocalizationConfig) -> LandmarkModels:
     """Motion and sensor models of a config, and the packed parameter vector of the kernels."""
     motion = UnicycleModel(cfg.dt, np.diag(np.square(cfg.motion_noise_std)))
     sensor: LandmarkSensor
@@ -151,7 +151,7 @@ def build_models(cfg: LandmarkEnvConfig) -> LandmarkModels:
     return LandmarkModels(motion, sensor, params, limits.primitives(), limits)
 
 
-def _map_extent(cfg: LandmarkEnvConfig) -> tuple[float, float]:
+def _map_extent(cfg: LocalizationConfig) -> tuple[float, float]:
     if isinstance(cfg.map, LandmarkMap):
         return cfg.map.size
     if isinstance(cfg.map, str) and cfg.map == "textbook":
@@ -161,7 +161,7 @@ def _map_extent(cfg: LandmarkEnvConfig) -> tuple[float, float]:
     return _fixed_map(cfg).size
 
 
-def _fixed_map(cfg: LandmarkEnvConfig) -> LandmarkMap:
+def _fixed_map(cfg: LocalizationConfig) -> LandmarkMap:
     """The map of a config that does not draw one per episode."""
     if isinstance(cfg.map, LandmarkMap):
         return cfg.map
@@ -390,7 +390,7 @@ class LandmarkCore:
     copying rebuild those views (``__setstate__``).
     """
 
-    def __init__(self, config: LandmarkEnvConfig, batch_size: int = 1) -> None:
+    def __init__(self, config: LocalizationConfig, batch_size: int = 1) -> None:
         if config.ekf_backend == "filterpy" and batch_size != 1:
             raise ValueError("ekf_backend='filterpy' runs single envs only (batch size 1)")
         self.config = config

@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from active_loc.envs.actions import action_space
-from active_loc.envs.config import LandmarkEnvConfig
+from active_loc.envs.config import LocalizationConfig
 from active_loc.envs.landmark_core import (
     S_COLLIDED,
     S_ENTROPY,
@@ -100,7 +100,7 @@ class ActiveLocalizationEnv(gym.Env):
     ## Arguments
 
     ``gymnasium.make("ActiveLoc/LandmarkEKF-v0", render_mode=None, **kwargs)`` where kwargs are
-    fields of :class:`active_loc.envs.config.LandmarkEnvConfig` (``belief``, ``map``,
+    fields of :class:`active_loc.envs.config.LocalizationConfig` (``belief``, ``map``,
     ``action_type``, ``observation``, ``reward``, noise levels, thresholds, ...).
     """
 
@@ -112,18 +112,18 @@ class ActiveLocalizationEnv(gym.Env):
         render_mode: str | None = None,
         **kwargs: Any,
     ) -> None:
-        unknown = set(kwargs) - set(LandmarkEnvConfig.field_names())
+        unknown = set(kwargs) - set(LocalizationConfig.field_names())
         if unknown:
             raise TypeError(
                 f"unknown env kwargs {sorted(unknown)}; valid ones are the fields of "
-                "LandmarkEnvConfig"
+                "LocalizationConfig"
             )
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode={render_mode!r} is not one of {self.metadata['render_modes']}"
             )
         self.scenario = scenario
-        self.config = LandmarkEnvConfig(**{**scenario_kwargs(scenario), **kwargs})
+        self.config = LocalizationConfig(**{**scenario_kwargs(scenario), **kwargs})
         self.render_mode = render_mode
         self.core = LandmarkCore(self.config, batch_size=1)
         self.action_space = action_space(self.config.action_type)

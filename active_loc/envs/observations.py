@@ -59,6 +59,72 @@ def _scaled_log_std(var: float) -> float:
 
 
 @numba.njit(cache=True)
+def write_belief_header(
+    mean: NDArray, cov: NDArray, entropy: float, bounds: NDArray, out: NDArray
+) -> None:
+    """The first :data:`BELIEF_HEADER` entries of an observation row ``out`` (float32): the
+    Gaussian summary of a belief (mean ``(3,)``, covariance ``(3, 3)``, entropy in nats)
+    normalized by the map bounds ``(4,)``."""
+    out[0] = _clip1(2.0 * (mean[0] - bounds[0]) / (bounds[2] - bounds[0]) - 1.0)
+    out[1] = _clip1(2.0 * (mean[1] - bounds[1]) / (bounds[3] - bounds[1]) - 1.0)
+    out[2] = np.cos(mean[2])
+    out[3] = np.sin(mean[2])
+    for i in range(3):
+        out[4 + i] = _scaled_log_std(cov[i, i])
+    pairs = ((0, 1), (0, 2), (1, 2))
+    for p in range(3):
+        i, j = pairs[p]
+        denom = np.sqrt(max(cov[i, i] * cov[j, j], 1e-300))
+        out[7 + p] = _clip1(cov[i, j] / denom)
+    out[10] = _clip1(entropy / ENTROPY_SCALE)
+
+
+@numba.njit(cache=True)
+def write_landmark_slots(
+    mean: NDArray,
+    z: NDArray,
+    visible: NDArray,
+    landmarks: NDArray,
+    count: int,
+    kind: int,
+    scale: float,
+    out: NDArray,
+) -> None:
+    """Landmark slots into ``out`` (float32, ``6 N`` entries): each landmark relative to the
+    belief mean ``(3,)`` and this step's measurement with a visibility flag.
+
+    Args:
+        z: ``(N, 2)`` scan; visible: ``(N,)``; landmarks: ``(N, 2)`` of which the
+            first ``count`` are real.
+        kind: sensor kind; scale: distance scale (m).
+    """
+    c = np.cos(mean[2])
+    s = np.sin(mean[2])
+    for j in range(landmarks.shape[0]):
+        base = SLOT_SIZE * j
+        if j >= count:
+            for k in range(SLOT_SIZE):
+                out[base + k] = 0.0
+            continue
+        dx = landmarks[j, 0] - mean[0]
+        dy = landmarks[j, 1] - mean[1]
+        out[base] = 1.0
+        out[base + 1] = _clip1((c * dx + s * dy) / scale)
+        out[base + 2] = _clip1((-s * dx + c * dy) / scale)
+        if visible[j]:
+            out[base + 3] = 1.0
+            out[base + 4] = _clip1(z[j, 0] / scale)
+            if kind == RANGE_BEARING:
+                out[base + 5] = _clip1(z[j, 1] / np.pi)
+            else:
+                out[base + 5] = _clip1(z[j, 1] / scale)
+        else:
+            out[base + 3] = 0.0
+            out[base + 4] = 0.0
+            out[base + 5] = 0.0
+
+
+@numba.njit(cache=True)
 def write_belief_observation(
     mean: NDArray,
     cov: NDArray,
@@ -72,49 +138,8 @@ def write_belief_observation(
     scale: float,
     out: NDArray,
 ) -> None:
-    """Fill one observation row ``out`` (float32) from a Gaussian-summarized belief.
-
-    Args:
-        mean: ``(3,)``; cov: ``(3, 3)``; entropy: nats.
-        z: ``(N, 2)`` scan; visible: ``(N,)``; landmarks: ``(N, 2)`` of which the
-            first ``count`` are real.
-        bounds: ``(4,)`` map bounds ``x_min, y_min, x_max, y_max`` (m).
-        kind: sensor kind; scale: distance scale (m).
-    """
-    out[0] = _clip1(2.0 * (mean[0] - bounds[0]) / (bounds[2] - bounds[0]) - 1.0)
-    out[1] = _clip1(2.0 * (mean[1] - bounds[1]) / (bounds[3] - bounds[1]) - 1.0)
-    c = np.cos(mean[2])
-    s = np.sin(mean[2])
-    out[2] = c
-    out[3] = s
-    for i in range(3):
-        out[4 + i] = _scaled_log_std(cov[i, i])
-    pairs = ((0, 1), (0, 2), (1, 2))
-    for p in range(3):
-        i, j = pairs[p]
-        denom = np.sqrt(max(cov[i, i] * cov[j, j], 1e-300))
-        out[7 + p] = _clip1(cov[i, j] / denom)
-    out[10] = _clip1(entropy / ENTROPY_SCALE)
-    for j in range(landmarks.shape[0]):
-        base = BELIEF_HEADER + SLOT_SIZE * j
-        if j >= count:
-            for k in range(SLOT_SIZE):
-                out[base + k] = 0.0
-            continue
-        dx = landmarks[j, 0] - mean[0]
-        dy = landmarks[j, 1] - mean[1]
-        out[base] = 1.0
-        out[base + 1] = _clip1((c * dx + s * dy) / scale)
-        out[base + 2] = _clip1((-s * dx + c * dy) / scale)
-        if visible[j]:
-            out[base + 3] = 1.0
-            if kind == RANGE_BEARING:
-                out[base + 4] = _clip1(z[j, 0] / scale)
-                out[base + 5] = _clip1(z[j, 1] / np.pi)
-            else:
-                out[base + 4] = _clip1(z[j, 0] / scale)
-                out[base + 5] = _clip1(z[j, 1] / scale)
-        else:
-            out[base + 3] = 0.0
-            out[base + 4] = 0.0
-            out[base + 5] = 0.0
+    """Fill one landmark-map observation row ``out`` (float32): the belief header, then the
+    landmark slots (arguments as in :func:`write_belief_header` and
+    :func:`write_landmark_slots`)."""
+    write_belief_header(mean, cov, entropy, bounds, out)
+    write_landmark_slots(mean, z, visible, landmarks, count, kind, scale, out[BELIEF_HEADER:])

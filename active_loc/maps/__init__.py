@@ -1,5 +1,34 @@
-"""Maps the robot localizes in: point-landmark maps (occupancy grids follow)."""
+"""Maps the robot localizes in: point-landmark maps, occupancy grids (with ROS map_server file
+IO) and the generators of random occupancy maps."""
 
+from active_loc.maps.generators import GENERATORS, maze_map, rooms_map, symmetric_arena
 from active_loc.maps.landmarks import LandmarkMap, random_landmark_map
+from active_loc.maps.occupancy import (
+    FREE,
+    OCCUPIED,
+    OFF_MAP,
+    UNKNOWN,
+    MapFileError,
+    MapFileNotFoundError,
+    OccupancyGrid,
+    cell_value,
+    world_to_grid,
+)
 
-__all__ = ["LandmarkMap", "random_landmark_map"]
+__all__ = [
+    "FREE",
+    "GENERATORS",
+    "OCCUPIED",
+    "OFF_MAP",
+    "UNKNOWN",
+    "LandmarkMap",
+    "MapFileError",
+    "MapFileNotFoundError",
+    "OccupancyGrid",
+    "cell_value",
+    "maze_map",
+    "random_landmark_map",
+    "rooms_map",
+    "symmetric_arena",
+    "world_to_grid",
+]

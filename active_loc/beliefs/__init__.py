@@ -4,5 +4,14 @@ from active_loc.beliefs.base import Belief
 from active_loc.beliefs.ekf import EKFBelief
 from active_loc.beliefs.ekf_filterpy import FilterpyEKFBelief
 from active_loc.beliefs.entropy import gaussian_entropy
+from active_loc.beliefs.mcl import FreeSpace, MCLBelief, landmark_log_likelihood
 
-__all__ = ["Belief", "EKFBelief", "FilterpyEKFBelief", "gaussian_entropy"]
+__all__ = [
+    "Belief",
+    "EKFBelief",
+    "FilterpyEKFBelief",
+    "FreeSpace",
+    "MCLBelief",
+    "gaussian_entropy",
+    "landmark_log_likelihood",
+]

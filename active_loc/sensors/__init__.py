@@ -1,4 +1,4 @@
-"""Sensors: landmark sensors with known correspondences (lidar follows)."""
+"""Sensors: landmark sensors with known correspondences and a 2-D lidar."""
 
 from active_loc.sensors.landmarks import (
     RANGE_BEARING,
@@ -7,11 +7,13 @@ from active_loc.sensors.landmarks import (
     RangeBearingSensor,
     RelativePositionSensor,
 )
+from active_loc.sensors.lidar import LidarSensor
 
 __all__ = [
     "RANGE_BEARING",
     "RELATIVE_POSITION",
     "LandmarkSensor",
+    "LidarSensor",
     "RangeBearingSensor",
     "RelativePositionSensor",
 ]

@@ -1,0 +1,1139 @@
+"""Monte Carlo localization (the chapter's Algorithm 4), with KLD sampling and augmented MCL.
+
+MCL (Dellaert et al. 1999) represents the belief by K weighted particles ``(x, y, theta)``:
+
+1. **Motion** (map-aware transition, eq. 13.2): every particle is moved with the unicycle model
+   plus additive noise ``eps = L n``, ``n ~ N(0, I)`` and ``L L^T = Q``; a particle that lands
+   in an occupied, unknown or off-map cell (or outside the box of a landmark map) has
+   ``p(x | m) = 0``, so its log-weight becomes ``-inf``.
+2. **Measurement**: per-particle log-likelihoods ``log p(z | x_k, m)`` (from the lidar module,
+   or :func:`landmark_log_likelihood` here) are added to the log-weights, which are normalized
+   with logsumexp. Their weighted mean is the evidence ``p(z_t | z_1:t-1)``.
+3. **Resampling** when the effective sample size drops below a fraction of K: the low-variance
+   (systematic) sampler of Thrun et al. (2005, table 4.4) or stratified resampling.
+
+Two extensions, both off by default:
+
+* **Augmented MCL** (Thrun et al. 2005, table 8.3; AMCL's ``recovery_alpha_slow/fast``): short-
+  and long-term averages ``w_fast``, ``w_slow`` of the evidence; at resampling a fraction
+  ``max(0, 1 - w_fast / w_slow)`` of the particles is replaced by uniform free poses, so the
+  filter can recover from a kidnapping. The averages are kept in log space (evidence values of
+  ``exp(-1000)`` are common), start at the first evidence and restart after every resampling
+  that injected, as in AMCL (whose comment says why: "to avoid spiraling off into complete
+  randomness"; without the restart the rate sustains itself at the fraction of particles it
+  replaces, and a sharp likelihood never lets the set regrow).
+* **KLD sampling** (Fox 2003): at resampling, particles are drawn one by one until their count
+  reaches the bound of :func:`~active_loc.beliefs.particle_stats.kld_limit` for the number of
+  occupied pose bins, as AMCL's ``pf_update_resample``; as in AMCL the draws are then
+  multinomial (the low-variance sampler needs the count in advance). Arrays keep the maximum
+  size; the first ``n_active`` rows are the particle set.
+
+Randomness: every draw comes from the ``numpy.random.Generator`` passed in, drawn as arrays in
+Python and handed to the kernels, with a fixed number of draws per call (``3 K_max`` normals per
+predict, ``K_max + 1`` uniforms per update, plus ``5 K_max`` with augmentation), so that runs
+are reproducible and planners can use common random numbers. Only a re-initialization draws
+extra (``4 K_max`` uniforms).
+
+The map enters as a :class:`FreeSpace`: an occupancy grid in plain arrays (``values (ny, nx)``
+int8, FREE = 0, OCCUPIED = 100, UNKNOWN = -1, row 0 at the bottom, origin the world pose of the
+bottom-left corner of cell (0, 0)) or an axis-aligned box for landmark maps.
+
+Entropy (nats) is the histogram entropy on the pose grid plus ``log(cell volume)``
+(:func:`~active_loc.beliefs.particle_stats.histogram_entropy`), as for the grid filter.
+"""
+
+from __future__ import annotations
+
+import copy as _copy
+import math
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from active_loc.beliefs.particle_stats import (
+    ENTROPY_BINS,
+    bin_hash,
+    effective_sample_size,
+    histogram_entropy,
+    kld_limit,
+    logsumexp,
+    normalize_log_weights,
+    pose_bin,
+    table_size,
+    weighted_covariance,
+    weighted_mean,
+)
+from active_loc.geometry import wrap_angle, wrap_angle_scalar
+from active_loc.motion import UnicycleModel
+from active_loc.sensors.landmarks import (
+    RANGE_BEARING,
+    RELATIVE_POSITION,
+    LandmarkSensor,
+    measurement,
+)
+
+#: occupancy values of the grid convention
+FREE = 0
+OCCUPIED = 100
+UNKNOWN = -1
+
+RESAMPLING_SCHEMES = ("systematic", "stratified")
+
+#: AMCL's KLD bin size (dx m, dy m, dtheta rad): 0.5 m, 0.5 m, 10 degrees
+KLD_BINS = (0.5, 0.5, math.radians(10.0))
+
+# jitter inside a free cell stays this far from its edges, so that rounding in the world <-> grid
+# transform can never move a sampled pose into the neighbouring (maybe occupied) cell
+_EDGE = 1e-9
+
+
+# --- free space ----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class FreeSpace:
+    """Where the robot may be: the free cells of an occupancy grid, or an axis-aligned box.
+
+    Build it with :meth:`from_grid` or :meth:`from_box`. The kernels take the plain arrays
+    ``values``, ``geom``, ``is_grid`` and ``free_cells``.
+
+    Attributes:
+        values: ``(ny, nx)`` int8 occupancy (FREE = 0, OCCUPIED = 100, UNKNOWN = -1), row 0 at
+            the bottom; a ``(1, 1)`` dummy for a box.
+        resolution: cell size (m).
+        origin: ``(ox, oy, yaw)``, world pose of the bottom-left corner of cell (0, 0) (m, rad).
+        box: ``(x_min, y_min, x_max, y_max)`` (m): the valid region of a box map (inclusive);
+            for a grid, the axis-aligned bounds of the grid's extent (information only).
+        is_grid: whether validity is the grid test (else the box test).
+        free_cells: ``(F, 2)`` int64 ``(ix, iy)`` of the free cells (derived; ``(1, 2)`` zeros
+            for a box), to sample uniform free poses.
+        geom: ``(9,)`` float64 ``ox, oy, cos yaw, sin yaw, resolution, x_min, y_min, x_max,
+            y_max`` for the kernels (derived).
+        area: free area (m^2) (derived).
+    """
+
+    values: NDArray[np.int8]
+    resolution: float = 1.0
+    origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    box: tuple[float, float, float, float] = (0.0, 0.0, 1.0, 1.0)
+    is_grid: bool = True
+    free_cells: NDArray[np.int64] = field(init=False, repr=False)
+    geom: NDArray[np.float64] = field(init=False, repr=False)
+    area: float = field(init=False)
+
+    def __post_init__(self) -> None:
+        values = np.ascontiguousarray(self.values)
+        if values.ndim != 2 or values.size == 0:
+            raise ValueError(f"FreeSpace.values must be a non-empty (ny, nx) array, got shape "
+                             f"{values.shape}")
+        numeric = np.issubdtype(values.dtype, np.integer) or np.issubdtype(
+            values.dtype, np.floating
+        )
+        if not numeric or not np.all(np.isfinite(values)) or np.any(values != np.round(values)) or (
+            values.min() < -128 or values.max() > 127
+        ):
+            raise ValueError("FreeSpace.values must be integers in the int8 range "
+                             "(FREE 0, OCCUPIED 100, UNKNOWN -1)")
+        values = values.astype(np.int8)
+        res = float(self.resolution)
+        if not (math.isfinite(res) and res > 0):
+            raise ValueError(f"FreeSpace.resolution must be a finite number > 0 m, got {res}")
+        origin = tuple(float(v) for v in np.asarray(self.origin, dtype=np.float64).reshape(-1))
+        if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
+            raise ValueError(f"FreeSpace.origin must be 3 finite numbers (ox, oy, yaw), "
+                             f"got {self.origin}")
+        c, s = math.cos(origin[2]), math.sin(origin[2])
+        if self.is_grid:
+            cells = np.argwhere(values == FREE)[:, ::-1]  # (iy, ix) -> (ix, iy)
+            if cells.shape[0] == 0:
+                raise ValueError("FreeSpace.values has no FREE (0) cell: nowhere to put the robot")
+            ny, nx = values.shape
+            corners = np.array([[0, 0], [nx, 0], [0, ny], [nx, ny]], dtype=np.float64) * res
+            wx = origin[0] + c * corners[:, 0] - s * corners[:, 1]
+            wy = origin[1] + s * corners[:, 0] + c * corners[:, 1]
+            box = (float(wx.min()), float(wy.min()), float(wx.max()), float(wy.max()))
+            area = cells.shape[0] * res * res
+        else:
+            box = tuple(float(v) for v in np.asarray(self.box, dtype=np.float64).reshape(-1))
+            if len(box) != 4 or not all(math.isfinite(v) for v in box) or not (
+                box[0] < box[2] and box[1] < box[3]
+            ):
+                raise ValueError(f"FreeSpace.box must be finite (x_min, y_min, x_max, y_max) with "
+                                 f"x_min < x_max and y_min < y_max, got {self.box}")
+            cells = np.zeros((1, 2), dtype=np.int64)
+            area = (box[2] - box[0]) * (box[3] - box[1])
+        cells = np.ascontiguousarray(cells, dtype=np.int64)
+        geom = np.array([origin[0], origin[1], c, s, res, *box], dtype=np.float64)
+        for arr in (values, cells, geom):
+            arr.setflags(write=False)
+        object.__setattr__(self, "values", values)
+        object.__setattr__(self, "resolution", res)
+        object.__setattr__(self, "origin", origin)
+        object.__setattr__(self, "box", box)
+        object.__setattr__(self, "is_grid", bool(self.is_grid))
+        object.__setattr__(self, "free_cells", cells)
+        object.__setattr__(self, "geom", geom)
+        object.__setattr__(self, "area", float(area))
+
+    @classmethod
+    def from_grid(
+        cls, values: ArrayLike, resolution: float, origin: ArrayLike = (0.0, 0.0, 0.0)
+    ) -> FreeSpace:
+        """Free space of an occupancy grid ``values (ny, nx)`` with cell size ``resolution``
+        (m) and ``origin`` ``(ox, oy, yaw)``; only FREE (0) cells are valid."""
+        return cls(np.asarray(values), resolution, tuple(np.asarray(origin, float)), is_grid=True)
+
+    @classmethod
+    def from_box(cls, x_min: float, y_min: float, x_max: float, y_max: float) -> FreeSpace:
+        """Free space of a landmark map: the box ``[x_min, x_max] x [y_min, y_max]`` (m)."""
+        return cls(
+            np.zeros((1, 1), dtype=np.int8), 1.0, (0.0, 0.0, 0.0),
+            (x_min, y_min, x_max, y_max), is_grid=False,
+        )
+
+    def is_free(self, points: ArrayLike) -> NDArray[np.bool_]:
+        """Validity of world points ``(..., 2)`` (or poses ``(..., 3)``): booleans ``(...)``."""
+        pts = np.asarray(points, dtype=np.float64)
+        flat = np.ascontiguousarray(pts.reshape(-1, pts.shape[-1])[:, :2])
+        out = np.empty(flat.shape[0], dtype=np.bool_)
+        points_free(flat, self.values, self.geom, self.is_grid, out)
+        return out.reshape(pts.shape[:-1])
+
+    def sample(self, n: int, rng: np.random.Generator) -> NDArray[np.float64]:
+        """``n`` poses ``(n, 3)`` uniform over the free space and over headings."""
+        out = np.empty((n, 3))
+        sample_free_poses(rng.random((n, 4)), self.values, self.geom, self.is_grid,
+                          self.free_cells, out)
+        return out
+
+
+@numba.njit(cache=True, inline="always")
+def grid_cell(
+    x: float, y: float, ox: float, oy: float, c: float, s: float, res: float, nx: int, ny: int
+) -> int:
+    """Flat index ``iy * nx + ix`` of the grid cell holding ``(x, y)`` (m), or -1 off the map.
+
+    Grid coordinates are ``gx = (c (x - ox) + s (y - oy)) / res`` and
+    ``gy = (-s (x - ox) + c (y - oy)) / res``; the cell is ``(floor(gx), floor(gy))``. Scalars
+    only, so that per-particle loops pay no array reference counting.
+    """
+    if not (np.isfinite(x) and np.isfinite(y)):
+        return -1
+    dx = x - ox
+    dy = y - oy
+    fx = np.floor((c * dx + s * dy) / res)
+    fy = np.floor((-s * dx + c * dy) / res)
+    if fx < 0.0 or fy < 0.0 or fx >= nx or fy >= ny:
+        return -1
+    return int(fy) * nx + int(fx)
+
+
+@numba.njit(cache=True)
+def points_free(
+    points: NDArray, values: NDArray, geom: NDArray, is_grid: bool, out: NDArray
+) -> None:
+    """Validity of points ``(M, >= 2)`` (m) into booleans ``out`` ``(M,)``: the point lies in a
+    FREE cell of the grid ``values`` (off-map, occupied and unknown cells are invalid), or in
+    the box ``geom[5:9]`` (inclusive) when ``is_grid`` is False. ``geom`` is
+    :attr:`FreeSpace.geom`."""
+    ny, nx = values.shape
+    flat = values.ravel()
+    ox, oy, c, s, res = geom[0], geom[1], geom[2], geom[3], geom[4]
+    x_min, y_min, x_max, y_max = geom[5], geom[6], geom[7], geom[8]
+    for i in range(points.shape[0]):
+        x = points[i, 0]
+        y = points[i, 1]
+        if is_grid:
+            j = grid_cell(x, y, ox, oy, c, s, res, nx, ny)
+            out[i] = j >= 0 and flat[j] == FREE
+        else:
+            out[i] = x_min <= x <= x_max and y_min <= y <= y_max
+
+
+@numba.njit(cache=True)
+def sample_free_poses(
+    u: NDArray, values: NDArray, geom: NDArray, is_grid: bool, free_cells: NDArray, out: NDArray
+) -> None:
+    """Poses ``(M, 3)`` uniform over the free space and the headings, from uniforms ``u``.
+
+    Args:
+        u: ``(M, >= 4)`` uniforms in [0, 1): column 0 picks the free cell (grid) or x (box),
+            columns 1-2 jitter inside the cell (grid) or column 1 is y (box), column 3 the
+            heading. Extra columns are ignored.
+        free_cells: ``(F, 2)`` ``(ix, iy)`` of the free cells (grid only).
+        out: ``(M, 3)`` out.
+    """
+    n_free = free_cells.shape[0]
+    for m in range(out.shape[0]):
+        if is_grid:
+            f = int(u[m, 0] * n_free)
+            if f >= n_free:
+                f = n_free - 1
+            gx = free_cells[f, 0] + _EDGE + u[m, 1] * (1.0 - 2.0 * _EDGE)
+            gy = free_cells[f, 1] + _EDGE + u[m, 2] * (1.0 - 2.0 * _EDGE)
+            out[m, 0] = geom[0] + geom[4] * (geom[2] * gx - geom[3] * gy)
+            out[m, 1] = geom[1] + geom[4] * (geom[3] * gx + geom[2] * gy)
+        else:
+            out[m, 0] = geom[5] + u[m, 0] * (geom[7] - geom[5])
+            out[m, 1] = geom[6] + u[m, 1] * (geom[8] - geom[6])
+        th = -np.pi + 2.0 * np.pi * u[m, 3]
+        out[m, 2] = th if th < np.pi else -np.pi
+
+
+# --- motion --------------------------------------------------------------------------------------
+
+
+@numba.njit(cache=True)
+def sample_motion(
+    particles: NDArray,
+    counts: NDArray,
+    controls: NDArray,
+    dt: float,
+    normals: NDArray,
+    noise_root: NDArray,
+) -> None:
+    """Sample the unicycle transition in place (Algorithm 4, first loop, without the map).
+
+    ``x += V cos(theta) dt + e_x``, ``y += V sin(theta) dt + e_y``,
+    ``theta = wrap(theta + omega dt + e_theta)`` with ``e = L n``.
+
+    Args:
+        particles: ``(B, K, 3)``; the first ``counts[b]`` rows of member b move.
+        counts: ``(B,)`` int64 active particle counts.
+        controls: ``(B, 2)`` (V m/s, omega rad/s).
+        dt: time step (s).
+        normals: ``(B, K, 3)`` standard normals drawn with the Generator.
+        noise_root: ``(3, 3)`` L with ``L L^T = Q``.
+    """
+    l00, l01, l02 = noise_root[0, 0], noise_root[0, 1], noise_root[0, 2]
+    l10, l11, l12 = noise_root[1, 0], noise_root[1, 1], noise_root[1, 2]
+    l20, l21, l22 = noise_root[2, 0], noise_root[2, 1], noise_root[2, 2]
+    for b in range(particles.shape[0]):
+        v = controls[b, 0]
+        om = controls[b, 1]
+        for k in range(counts[b]):
+            n0 = normals[b, k, 0]
+            n1 = normals[b, k, 1]
+            n2 = normals[b, k, 2]
+            th = particles[b, k, 2]
+            particles[b, k, 0] += v * np.cos(th) * dt + l00 * n0 + l01 * n1 + l02 * n2
+            particles[b, k, 1] += v * np.sin(th) * dt + l10 * n0 + l11 * n1 + l12 * n2
+            particles[b, k, 2] = wrap_angle_scalar(th + om * dt + l20 * n0 + l21 * n1 + l22 * n2)
+
+
+@numba.njit(cache=True)
+def mask_free_space(
+    particles: NDArray,
+    log_w: NDArray,
+    counts: NDArray,
+    values: NDArray,
+    geom: NDArray,
+    is_grid: bool,
+) -> None:
+    """The map prior of eq. 13.2: ``log_w = -inf`` for particles ``(B, K, 3)`` outside the free
+    space (occupied, unknown or off-map cells, or outside the box; see :func:`points_free`).
+    ``log_w`` is ``(B, K)``; only the first ``counts[b]`` entries of member b are touched."""
+    ny, nx = values.shape
+    flat = values.ravel()
+    ox, oy, c, s, res = geom[0], geom[1], geom[2], geom[3], geom[4]
+    x_min, y_min, x_max, y_max = geom[5], geom[6], geom[7], geom[8]
+    for b in range(particles.shape[0]):
+        for k in range(counts[b]):
+            x = particles[b, k, 0]
+            y = particles[b, k, 1]
+            if is_grid:
+                j = grid_cell(x, y, ox, oy, c, s, res, nx, ny)
+                ok = j >= 0 and flat[j] == FREE
+            else:
+                ok = x_min <= x <= x_max and y_min <= y <= y_max
+            if not ok:
+                log_w[b, k] = -np.inf
+
+
+# --- weights and resampling ----------------------------------------------------------------------
+
+
+@numba.njit(cache=True)
+def add_log_likelihood(log_w: NDArray, log_lik: NDArray) -> float:
+    """Measurement update of the weights in place: ``log_w += log_lik``, then normalized.
+
+    Args:
+        log_w: ``(K,)`` log-weights (normalized or not).
+        log_lik: ``(K,)`` per-particle log-likelihoods ``log p(z | x_k, m)``; ``-inf`` and huge
+            negative values are fine, NaN and ``+inf`` are not (the caller checks).
+
+    Returns:
+        The log evidence ``log sum_k w_k p(z | x_k)`` with the prior weights normalized (the
+        average likelihood that drives augmented MCL); ``-inf`` on a total collapse, in which
+        case ``log_w`` is all ``-inf``.
+    """
+    lse_prior = logsumexp(log_w)
+    # shift by the largest log-likelihood (a constant cancels in the normalization), so that
+    # values like -1e300 do not swamp the log-weights they are added to
+    shift = -np.inf
+    for v in log_lik:
+        if v > shift:
+            shift = v
+    if shift == -np.inf or lse_prior == -np.inf:
+        for i in range(log_w.shape[0]):
+            log_w[i] = -np.inf
+        return -np.inf
+    for i in range(log_w.shape[0]):
+        log_w[i] += log_lik[i] - shift
+    lse_post = normalize_log_weights(log_w)
+    if lse_post == -np.inf:
+        return -np.inf
+    return shift + lse_post - lse_prior
+
+
+@numba.njit(cache=True)
+def _cumulative_weights(log_w: NDArray, cdf: NDArray) -> tuple:
+    """Running sums of the normalized weights into ``cdf`` ``(K,)``; returns ``(total, last)``
+    with ``last`` the index of the last particle of positive weight (the search never goes
+    beyond it, whatever the rounding of the sums)."""
+    k = log_w.shape[0]
+    lse = logsumexp(log_w)
+    running = 0.0
+    last = k - 1
+    found = False
+    for i in range(k):
+        w = 1.0 / k if lse == -np.inf else np.exp(log_w[i] - lse)
+        running += w
+        cdf[i] = running
+        if w > 0.0:
+            last = i
+            found = True
+    if not found:
+        last = k - 1
+    return running, last
+
+
+@numba.njit(cache=True)
+def _positions_to_indices(cdf: NDArray, total: float, last: int, positions: NDArray,
+                          out: NDArray) -> None:
+    """For increasing positions in [0, 1), the particle whose cdf interval holds each one:
+    the first ``i`` with ``cdf[i] > pos * total``; zero-weight particles are never chosen."""
+    i = 0
+    for m in range(positions.shape[0]):
+        target = positions[m] * total
+        while i < last and cdf[i] <= target:
+            i += 1
+        out[m] = i
+
+
+@numba.njit(cache=True)
+def systematic_resample(log_w: NDArray, u: float, out: NDArray) -> None:
+    """Low-variance sampler (Thrun et al. 2005, table 4.4): indices ``out`` ``(M,)`` of the
+    particles at positions ``(u + m) / M``, from one uniform ``u`` in [0, 1). Particle k gets
+    ``floor(M w_k)`` or ``ceil(M w_k)`` copies."""
+    m_out = out.shape[0]
+    if m_out == 0:
+        return
+    cdf = np.empty(log_w.shape[0])
+    total, last = _cumulative_weights(log_w, cdf)
+    positions = (u + np.arange(m_out)) / m_out
+    _positions_to_indices(cdf, total, last, positions, out)
+
+
+@numba.njit(cache=True)
+def stratified_resample(log_w: NDArray, u: NDArray, out: NDArray) -> None:
+    """Stratified resampling: indices ``out`` ``(M,)`` at positions ``(m + u_m) / M``, one
+    uniform per stratum from ``u`` (``(>= M,)``, the first M are used)."""
+    m_out = out.shape[0]
+    if m_out == 0:
+        return
+    cdf = np.empty(log_w.shape[0])
+    total, last = _cumulative_weights(log_w, cdf)
+    positions = (np.arange(m_out) + u[:m_out]) / m_out
+    _positions_to_indices(cdf, total, last, positions, out)
+
+
+@numba.njit(cache=True)
+def resample_particles(
+    particles: NDArray,
+    log_w: NDArray,
+    u_sel: NDArray,
+    stratified: bool,
+    inject_prob: float,
+    u_inj: NDArray,
+    values: NDArray,
+    geom: NDArray,
+    is_grid: bool,
+    free_cells: NDArray,
+    out: NDArray,
+) -> int:
+    """Fixed-count resampling with optional injection of uniform free poses (augmented MCL).
+
+    ``n_inj = floor(inject_prob K + u_sel[-1])`` (stochastic rounding, unbiased) rows of
+    ``out`` get uniform free poses from ``u_inj``; the other ``K - n_inj`` are drawn from the
+    weighted set, systematically (``u_sel[0]``) or stratified (``u_sel[:K - n_inj]``).
+
+    Args:
+        particles: ``(K, 3)``; log_w: ``(K,)``.
+        u_sel: ``(>= K + 1,)`` uniforms.
+        inject_prob: fraction of random particles in [0, 1].
+        u_inj: ``(>= n_inj, >= 4)`` uniforms for the random poses (may be empty when
+            ``inject_prob`` is 0).
+        out: ``(K, 3)`` out.
+
+    Returns:
+        The number of injected particles.
+    """
+    k = particles.shape[0]
+    n_inj = int(np.floor(inject_prob * k + u_sel[u_sel.shape[0] - 1]))
+    n_inj = min(max(n_inj, 0), k)
+    if n_inj > 0:
+        sample_free_poses(u_inj[:n_inj], values, geom, is_grid, free_cells, out[:n_inj])
+    m = k - n_inj
+    idx = np.empty(m, dtype=np.int64)
+    if stratified:
+        stratified_resample(log_w, u_sel, idx)
+    else:
+        systematic_resample(log_w, u_sel[0], idx)
+    for j in range(m):
+        out[n_inj + j, 0] = particles[idx[j], 0]
+        out[n_inj + j, 1] = particles[idx[j], 1]
+        out[n_inj + j, 2] = particles[idx[j], 2]
+    return n_inj
+
+
+@numba.njit(cache=True)
+def kld_resample(
+    particles: NDArray,
+    log_w: NDArray,
+    u_sel: NDArray,
+    inject_prob: float,
+    u_inj: NDArray,
+    values: NDArray,
+    geom: NDArray,
+    is_grid: bool,
+    free_cells: NDArray,
+    bins: NDArray,
+    min_particles: int,
+    max_particles: int,
+    err: float,
+    z: float,
+    out: NDArray,
+) -> tuple:
+    """KLD-sampling resampling (Fox 2003), as AMCL's ``pf_update_resample``.
+
+    Draws particles one at a time (multinomial from ``u_sel[n]``; with probability
+    ``inject_prob``, decided by ``u_inj[n, 4]``, a uniform free pose from ``u_inj[n, :4]``),
+    counts the occupied bins of size ``bins`` ``(dx, dy, dtheta)``, and stops once the count
+    reaches :func:`kld_limit` of the bins (or ``max_particles``).
+
+    Args:
+        particles: ``(K, 3)``; log_w: ``(K,)``; u_sel: ``(>= max_particles,)`` uniforms;
+        u_inj: ``(max_particles, 5)`` uniforms (may be empty when ``inject_prob`` is 0);
+        out: ``(max_particles, 3)`` out; the first ``count`` rows are the new set.
+
+    Returns:
+        ``(count, n_injected)``.
+    """
+    k = particles.shape[0]
+    cdf = np.empty(k)
+    total, last = _cumulative_weights(log_w, cdf)
+    injected = np.empty((0, 3))
+    if inject_prob > 0.0:
+        injected = np.empty((max_particles, 3))
+        sample_free_poses(u_inj, values, geom, is_grid, free_cells, injected)
+    dx, dy, dth = bins[0], bins[1], bins[2]
+    size = table_size(max_particles)
+    mask = size - 1
+    keys = np.empty((size, 3), dtype=np.int64)
+    used = np.zeros(size, dtype=np.bool_)
+    n_bins = 0
+    count = 0
+    n_inj = 0
+    limit = kld_limit(0, min_particles, max_particles, err, z)
+    while count < max_particles:
+        if inject_prob > 0.0 and u_inj[count, 4] < inject_prob:
+            x, y, th = injected[count, 0], injected[count, 1], injected[count, 2]
+            n_inj += 1
+        else:
+            i = np.searchsorted(cdf, u_sel[count] * total, side="right")
+            if i > last:
+                i = last
+            x, y, th = particles[i, 0], particles[i, 1], particles[i, 2]
+        out[count, 0] = x
+        out[count, 1] = y
+        out[count, 2] = th
+        # insert the bin (open addressing; see particle_stats.assign_bins)
+        b0, b1, b2 = pose_bin(x, y, th, dx, dy, dth)
+        j = bin_hash(b0, b1, b2, mask)
+        while used[j] and not (keys[j, 0] == b0 and keys[j, 1] == b1 and keys[j, 2] == b2):
+            j = (j + 1) & mask
+        if not used[j]:
+            used[j] = True
+            keys[j, 0] = b0
+            keys[j, 1] = b1
+            keys[j, 2] = b2
+            n_bins += 1
+            limit = kld_limit(n_bins, min_particles, max_particles, err, z)
+        count += 1
+        if count >= limit:
+            break
+    return count, n_inj
+
+
+# --- landmark likelihood -------------------------------------------------------------------------
+
+
+@numba.njit(cache=True, inline="always")
+def _landmark_log_density(
+    kind: int, x: float, y: float, th: float, mx: float, my: float, z0: float, z1: float,
+    l00: float, l10: float, l11: float, log_norm: float,
+) -> float:
+    """``log N(z; h(x, m), R)`` with R = L L^T, the bearing residual wrapped."""
+    h0, h1 = measurement(kind, x, y, th, mx, my)
+    r0 = z0 - h0
+    r1 = z1 - h1
+    if kind == RANGE_BEARING:
+        r1 = wrap_angle_scalar(r1)
+    w0 = r0 / l00
+    w1 = (r1 - l10 * w0) / l11
+    return log_norm - 0.5 * (w0 * w0 + w1 * w1)
+
+
+@numba.njit(cache=True)
+def landmark_log_likelihood_kernel(
+    particles: NDArray,
+    z: NDArray,
+    visible: NDArray,
+    landmarks: NDArray,
+    kind: int,
+    l00: float,
+    l10: float,
+    l11: float,
+    known_correspondence: bool,
+    out: NDArray,
+) -> None:
+    """Per-particle ``sum_i log N(z_i; h(x_k, m_c(i)), R)`` over the visible measurements.
+
+    Args:
+        particles: ``(K, 3)``; z: ``(N, 2)``; visible: ``(N,)`` bool; landmarks: ``(L, 2)``.
+        kind: ``RELATIVE_POSITION`` or ``RANGE_BEARING``.
+        l00, l10, l11: lower Cholesky factor of R (2 x 2).
+        known_correspondence: measurement i belongs to landmark i (``N == L``); otherwise each
+            measurement is matched, per particle, to the landmark of maximum likelihood (the
+            chapter's ML data association, evaluated at the particle instead of the mean).
+        out: ``(K,)`` out.
+    """
+    log_norm = -np.log(2.0 * np.pi) - np.log(l00) - np.log(l11)
+    n_lm = landmarks.shape[0]
+    for k in range(particles.shape[0]):
+        x = particles[k, 0]
+        y = particles[k, 1]
+        th = particles[k, 2]
+        total = 0.0
+        for i in range(z.shape[0]):
+            if not visible[i]:
+                continue
+            if known_correspondence:
+                total += _landmark_log_density(
+                    kind, x, y, th, landmarks[i, 0], landmarks[i, 1], z[i, 0], z[i, 1],
+                    l00, l10, l11, log_norm,
+                )
+            else:
+                best = -np.inf
+                for j in range(n_lm):
+                    val = _landmark_log_density(
+                        kind, x, y, th, landmarks[j, 0], landmarks[j, 1], z[i, 0], z[i, 1],
+                        l00, l10, l11, log_norm,
+                    )
+                    if val > best:
+                        best = val
+                total += best
+        out[k] = total
+
+
+def landmark_log_likelihood(
+    particles: ArrayLike,
+    z: ArrayLike,
+    visible: ArrayLike,
+    landmarks: ArrayLike,
+    kind: int,
+    noise_cov: ArrayLike,
+    known_correspondence: bool = True,
+) -> NDArray[np.float64]:
+    """Log-likelihoods ``(K,)`` of landmark measurements for particles ``(K, 3)``.
+
+    Args:
+        particles: ``(K, 3)`` poses (m, m, rad).
+        z: ``(N, 2)`` measurements (relative position m, or range m and bearing rad).
+        visible: ``(N,)`` which rows of ``z`` are real measurements.
+        landmarks: ``(L, 2)`` landmark positions (m); only real landmarks (no padding) when
+            correspondences are unknown.
+        kind: ``RELATIVE_POSITION`` or ``RANGE_BEARING``.
+        noise_cov: ``(2, 2)`` R, positive definite.
+        known_correspondence: see :func:`landmark_log_likelihood_kernel`.
+
+    Raises:
+        ValueError: on inconsistent shapes, an unknown kind or a bad R.
+    """
+    parts = np.ascontiguousarray(particles, dtype=np.float64).reshape(-1, 3)
+    z = np.ascontiguousarray(z, dtype=np.float64).reshape(-1, 2)
+    visible = np.ascontiguousarray(visible, dtype=np.bool_).reshape(-1)
+    landmarks = np.ascontiguousarray(landmarks, dtype=np.float64).reshape(-1, 2)
+    if visible.shape[0] != z.shape[0]:
+        raise ValueError(f"landmark_log_likelihood: z has {z.shape[0]} rows but visible has "
+                         f"{visible.shape[0]}")
+    if known_correspondence and z.shape[0] != landmarks.shape[0]:
+        raise ValueError(f"landmark_log_likelihood: with known correspondences z needs one row per "
+                         f"landmark ({landmarks.shape[0]}), got {z.shape[0]}")
+    if not known_correspondence and landmarks.shape[0] == 0 and visible.any():
+        raise ValueError("landmark_log_likelihood: measurements but no landmarks to match")
+    if kind not in (RELATIVE_POSITION, RANGE_BEARING):
+        raise ValueError(f"landmark_log_likelihood: kind must be RELATIVE_POSITION (0) or "
+                         f"RANGE_BEARING (1), got {kind}")
+    try:
+        root = np.linalg.cholesky(np.asarray(noise_cov, dtype=np.float64).reshape(2, 2))
+    except np.linalg.LinAlgError:
+        raise ValueError("landmark_log_likelihood: noise_cov is not positive definite") from None
+    out = np.empty(parts.shape[0])
+    landmark_log_likelihood_kernel(
+        parts, z, visible, landmarks, int(kind), float(root[0, 0]), float(root[1, 0]),
+        float(root[1, 1]), bool(known_correspondence), out,
+    )
+    return out
+
+
+# --- the belief ----------------------------------------------------------------------------------
+
+
+def _log_add(a: float, b: float) -> float:
+    """``log(exp(a) + exp(b))`` for floats, ``-inf`` allowed."""
+    if a == -math.inf:
+        return b
+    if b == -math.inf:
+        return a
+    m = max(a, b)
+    return m + math.log(math.exp(a - m) + math.exp(b - m))
+
+
+def _check_bins(name: str, bins: ArrayLike) -> NDArray[np.float64]:
+    arr = np.asarray(bins, dtype=np.float64).reshape(-1)
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+        raise ValueError(f"MCLBelief.{name} must be 3 finite sizes > 0 (dx m, dy m, dtheta rad), "
+                         f"got {bins}")
+    arr.setflags(write=False)
+    return arr
+
+
+class MCLBelief:
+    """Monte Carlo localization belief: a batch of one particle set, arrays batch-first.
+
+    State: ``(1, K_max, 3)`` particles, ``(1, K_max)`` normalized log-weights and the active
+    count (``K_max`` unless KLD sampling shrinks it); rows beyond the count have weight
+    ``-inf``. :attr:`particles` and :attr:`log_weights` are read-only views of the active rows.
+
+    Args:
+        free_space: where the robot may be (:class:`FreeSpace`).
+        motion: unicycle model (dt and Q).
+        n_particles: K, the particle count; with KLD sampling the maximum (AMCL 5000).
+        resampling: ``"systematic"`` (low-variance) or ``"stratified"``.
+        resample_threshold: resample when ESS < ``resample_threshold * K`` (in [0, 1];
+            1 after every update unless the weights are exactly uniform, 0 never).
+        augmented: inject uniform particles at rate ``max(0, 1 - w_fast / w_slow)``.
+        alpha_slow, alpha_fast: averaging rates of w_slow and w_fast,
+            ``0 < alpha_slow < alpha_fast <= 1`` (AMCL's recovery_alpha_slow/fast would be
+            0.001 and 0.1 when on).
+        kld: KLD sampling at resampling time.
+        min_particles: KLD lower bound (ROS AMCL's default 100; Nav2's is 500),
+            ``1 <= min_particles <= n_particles``.
+        kld_err: KLD error bound epsilon in (0, 1) (AMCL 0.01).
+        kld_z: upper standard normal quantile (AMCL's kld_z 0.99, used as is).
+        kld_bins: KLD bin size (dx m, dy m, dtheta rad) (AMCL 0.5 m, 0.5 m, 10 deg).
+        entropy_bins: entropy pose-grid cells (dx m, dy m, dtheta rad).
+
+    Attributes:
+        reinitialized: True when a total collapse re-initialized the belief since the start of
+            the last :meth:`predict` (all particles in walls, or every weight zero).
+        n_reinitializations: how many re-initializations in all.
+        resampled: whether the last :meth:`update` resampled.
+        last_injected: particles injected by the last update (0 if it did not resample).
+        last_injection_rate: the injection rate that update used (0 if it did not resample).
+        last_log_evidence: log of the weighted average likelihood at the last update.
+    """
+
+    def __init__(
+        self,
+        free_space: FreeSpace,
+        motion: UnicycleModel,
+        n_particles: int = 1000,
+        *,
+        resampling: str = "systematic",
+        resample_threshold: float = 0.5,
+        augmented: bool = False,
+        alpha_slow: float = 0.001,
+        alpha_fast: float = 0.1,
+        kld: bool = False,
+        min_particles: int = 100,
+        kld_err: float = 0.01,
+        kld_z: float = 0.99,
+        kld_bins: ArrayLike = KLD_BINS,
+        entropy_bins: ArrayLike = ENTROPY_BINS,
+    ) -> None:
+        if not isinstance(free_space, FreeSpace):
+            raise ValueError(f"MCLBelief.free_space must be a FreeSpace, got "
+                             f"{type(free_space).__name__}")
+        if isinstance(n_particles, bool) or int(n_particles) != n_particles or n_particles < 1:
+            raise ValueError(f"MCLBelief.n_particles must be an integer >= 1, got {n_particles}")
+        if resampling not in RESAMPLING_SCHEMES:
+            raise ValueError(f"MCLBelief.resampling must be one of {RESAMPLING_SCHEMES}, "
+                             f"got {resampling!r}")
+        if not (0.0 <= resample_threshold <= 1.0):
+            raise ValueError(f"MCLBelief.resample_threshold must be in [0, 1], got "
+                             f"{resample_threshold}")
+        if not (0.0 < alpha_slow < alpha_fast <= 1.0):
+            raise ValueError(f"MCLBelief.alpha_slow and alpha_fast must satisfy 0 < alpha_slow < "
+                             f"alpha_fast <= 1, got {alpha_slow}, {alpha_fast}")
+        n_particles = int(n_particles)
+        if kld:
+            if isinstance(min_particles, bool) or int(min_particles) != min_particles or not (
+                1 <= min_particles <= n_particles
+            ):
+                raise ValueError(f"MCLBelief.min_particles must be an integer in [1, n_particles="
+                                 f"{n_particles}], got {min_particles}")
+            if not (0.0 < kld_err < 1.0):
+                raise ValueError(f"MCLBelief.kld_err must be in (0, 1), got {kld_err}")
+            if not math.isfinite(kld_z):
+                raise ValueError(f"MCLBelief.kld_z must be finite, got {kld_z}")
+        self.free_space = free_space
+        self.motion = motion
+        self.n_particles = n_particles
+        self.resampling = resampling
+        self.resample_threshold = float(resample_threshold)
+        self.augmented = bool(augmented)
+        self.alpha_slow = float(alpha_slow)
+        self.alpha_fast = float(alpha_fast)
+        self.kld = bool(kld)
+        self.min_particles = int(min_particles) if kld else n_particles
+        self.kld_err = float(kld_err)
+        self.kld_z = float(kld_z)
+        self.kld_bins = _check_bins("kld_bins", kld_bins)
+        self.entropy_bins = _check_bins("entropy_bins", entropy_bins)
+
+        self._particles = np.zeros((1, n_particles, 3))
+        self._log_weights = np.full((1, n_particles), -math.log(n_particles))
+        self._counts = np.full(1, n_particles, dtype=np.int64)
+        self._log_w_slow: float | None = None
+        self._log_w_fast: float | None = None
+        self._initialized = False
+        self.reinitialized = False
+        self.n_reinitializations = 0
+        self.resampled = False
+        self.last_injected = 0
+        self.last_injection_rate = 0.0
+        self.last_log_evidence = math.nan
+
+    # --- views -------------------------------------------------------------------------------
+
+    @property
+    def batch_size(self) -> int:
+        """B, always 1."""
+        return 1
+
+    @property
+    def n_active(self) -> int:
+        """Active particle count K (changes only with KLD sampling)."""
+        return int(self._counts[0])
+
+    @property
+    def particles(self) -> NDArray[np.float64]:
+        """``(K, 3)`` read-only view of the active particles (valid until the next call that
+        changes the belief)."""
+        view = self._particles[0, : self._counts[0]]
+        view.flags.writeable = False
+        return view
+
+    @property
+    def log_weights(self) -> NDArray[np.float64]:
+        """``(K,)`` read-only view of the normalized log-weights of the active particles."""
+        view = self._log_weights[0, : self._counts[0]]
+        view.flags.writeable = False
+        return view
+
+    @property
+    def weights(self) -> NDArray[np.float64]:
+        """``(K,)`` normalized linear weights (a new array)."""
+        lw = self._log_weights[0, : self._counts[0]]
+        return np.exp(lw - logsumexp(lw))
+
+    @property
+    def injection_rate(self) -> float:
+        """``max(0, 1 - w_fast / w_slow)`` of augmented MCL; 0 when augmentation is off."""
+        if not self.augmented or self._log_w_slow is None or self._log_w_fast is None:
+            return 0.0
+        diff = self._log_w_fast - self._log_w_slow
+        return 0.0 if diff >= 0.0 else -math.expm1(diff)
+
+    # --- initialization ----------------------------------------------------------------------
+
+    def _set_uniform(self, rng: np.random.Generator) -> None:
+        k = self.n_particles
+        fs = self.free_space
+        sample_free_poses(rng.random((k, 4)), fs.values, fs.geom, fs.is_grid, fs.free_cells,
+                          self._particles[0])
+        self._log_weights[0] = -math.log(k)
+        self._counts[0] = k
+        self._log_w_slow = self._log_w_fast = None
+        self._initialized = True
+
+    def _reinitialize(self, rng: np.random.Generator) -> None:
+        """Recovery from a total collapse: uniform over the free space, recorded."""
+        self._set_uniform(rng)
+        self.reinitialized = True
+        self.n_reinitializations += 1
+
+    def initialize_uniform(self, rng: np.random.Generator) -> None:
+        """K_max particles uniform over the free space and all headings (global
+        localization); draws ``4 K_max`` uniforms."""
+        self._set_uniform(rng)
+
+    def initialize_gaussian(
+        self, mean: ArrayLike, cov: ArrayLike, rng: np.random.Generator
+    ) -> None:
+        """K_max particles from N(mean ``(3,)``, cov ``(3, 3)``) (pose tracking), headings
+        wrapped; samples outside the free space get weight 0, and if none is inside, the
+        belief is re-initialized uniformly (``reinitialized`` is set). Draws ``3 K_max``
+        normals."""
+        mean = np.asarray(mean, dtype=np.float64).reshape(-1)
+        cov = np.asarray(cov, dtype=np.float64)
+        if mean.shape != (3,) or not np.all(np.isfinite(mean)):
+            raise ValueError(f"MCLBelief.initialize_gaussian: mean must be 3 finite numbers, "
+                             f"got {mean}")
+        if cov.shape != (3, 3) or not np.all(np.isfinite(cov)) or not np.allclose(cov, cov.T):
+            raise ValueError("MCLBelief.initialize_gaussian: cov must be a finite symmetric "
+                             "(3, 3) matrix")
+        w, v = np.linalg.eigh(cov)
+        if w.min() < -1e-12 * max(1.0, w.max()):
+            raise ValueError("MCLBelief.initialize_gaussian: cov must be positive semi-definite")
+        root = v * np.sqrt(np.clip(w, 0.0, None))
+        k = self.n_particles
+        parts = mean + rng.standard_normal((k, 3)) @ root.T
+        parts[:, 2] = wrap_angle(parts[:, 2])
+        self._particles[0] = parts
+        self._log_weights[0] = -math.log(k)
+        self._counts[0] = k
+        self._log_w_slow = self._log_w_fast = None
+        self._initialized = True
+        self.reinitialized = False
+        self._apply_map(rng)
+
+    def set_particles(self, particles: ArrayLike, log_weights: ArrayLike | None = None) -> None:
+        """Set the particle set directly: ``(K, 3)`` poses and optional ``(K,)`` log-weights
+        (default uniform; normalized here). K must equal ``n_particles``, or lie in
+        ``[1, n_particles]`` with KLD sampling. Particles outside the free space get weight 0.
+
+        Raises:
+            ValueError: on bad shapes, non-finite poses, NaN/+inf weights, or no particle of
+                positive weight in the free space.
+        """
+        parts = np.array(particles, dtype=np.float64).reshape(-1, 3)
+        k = parts.shape[0]
+        if not (k == self.n_particles or (self.kld and 1 <= k <= self.n_particles)):
+            raise ValueError(f"MCLBelief.set_particles: expected {self.n_particles} particles"
+                             f"{' (or fewer with KLD)' if self.kld else ''}, got {k}")
+        if not np.all(np.isfinite(parts)):
+            raise ValueError("MCLBelief.set_particles: particles must be finite")
+        if log_weights is None:
+            lw = np.full(k, -math.log(k))
+        else:
+            lw = np.array(log_weights, dtype=np.float64).reshape(-1)
+            if lw.shape != (k,) or np.any(np.isnan(lw)) or np.any(lw == np.inf):
+                raise ValueError(f"MCLBelief.set_particles: log_weights must be ({k},) without "
+                                 f"NaN or +inf")
+        parts[:, 2] = wrap_angle(parts[:, 2])
+        counts = np.array([k], dtype=np.int64)
+        lw2 = lw.reshape(1, k).copy()
+        fs = self.free_space
+        mask_free_space(parts.reshape(1, k, 3), lw2, counts, fs.values, fs.geom, fs.is_grid)
+        if normalize_log_weights(lw2[0]) == -math.inf:
+            raise ValueError("MCLBelief.set_particles: no particle of positive weight in the "
+                             "free space")
+        self._particles[0, :k] = parts
+        self._particles[0, k:] = 0.0
+        self._log_weights[0, :k] = lw2[0]
+        self._log_weights[0, k:] = -math.inf
+        self._counts[0] = k
+        self._log_w_slow = self._log_w_fast = None
+        self._initialized = True
+
+    # --- filter steps ------------------------------------------------------------------------
+
+    def _check_initialized(self) -> None:
+        if not self._initialized:
+            raise RuntimeError("MCLBelief: call initialize_uniform, initialize_gaussian or "
+                               "set_particles first")
+
+    def _apply_map(self, rng: np.random.Generator) -> None:
+        """Map prior (eq. 13.2) on the active particles, normalization, collapse recovery."""
+        fs = self.free_space
+        mask_free_space(self._particles, self._log_weights, self._counts, fs.values, fs.geom,
+                        fs.is_grid)
+        if normalize_log_weights(self._log_weights[0, : self._counts[0]]) == -math.inf:
+            self._reinitialize(rng)
+
+    def predict(self, control: ArrayLike, rng: np.random.Generator) -> None:
+        """Motion update with control ``(2,)`` = (V m/s, omega rad/s) and the map prior.
+
+        Draws ``3 K_max`` normals. Particles that land outside the free space get weight 0;
+        if all do, the belief is re-initialized uniformly (``reinitialized`` is set).
+        """
+        self._check_initialized()
+        u = np.asarray(control, dtype=np.float64).reshape(-1)
+        if u.shape != (2,) or not np.all(np.isfinite(u)):
+            raise ValueError(f"MCLBelief.predict: control must be 2 finite numbers (V m/s, "
+                             f"omega rad/s), got {control}")
+        self.reinitialized = False
+        normals = rng.standard_normal((1, self.n_particles, 3))
+        sample_motion(self._particles, self._counts, u.reshape(1, 2), self.motion.dt, normals,
+                      self.motion.noise_root)
+        self._apply_map(rng)
+
+    def update(self, log_likelihood: ArrayLike, rng: np.random.Generator) -> None:
+        """Measurement update with per-particle log-likelihoods ``(K,)`` (K = :attr:`n_active`,
+        in the order of :attr:`particles`), then resampling when ESS < threshold * K.
+
+        ``-inf`` and huge negative values are fine. If no particle keeps a positive weight the
+        belief is re-initialized uniformly (``reinitialized`` is set). Draws ``K_max + 1``
+        uniforms (plus ``5 K_max`` with augmentation) whether or not it resamples.
+
+        Raises:
+            ValueError: on a wrong shape, NaN or ``+inf``.
+        """
+        self._check_initialized()
+        n = self.n_active
+        ll = np.ascontiguousarray(log_likelihood, dtype=np.float64).reshape(-1)
+        if ll.shape != (n,):
+            raise ValueError(f"MCLBelief.update: log_likelihood must have one entry per active "
+                             f"particle ({n}), got shape {np.shape(log_likelihood)}")
+        if np.any(np.isnan(ll)) or np.any(ll == np.inf):
+            raise ValueError("MCLBelief.update: log_likelihood contains NaN or +inf")
+        u_sel, u_inj = self._draw_resampling(rng)
+        self.resampled = False
+        self.last_injected = 0
+        self.last_injection_rate = 0.0
+        log_ev = add_log_likelihood(self._log_weights[0, :n], ll)
+        self.last_log_evidence = log_ev
+        if log_ev == -math.inf:
+            self._reinitialize(rng)
+            return
+        # w_slow += alpha_slow (w_avg - w_slow), and w_fast likewise, in log space
+        if self._log_w_slow is None or self._log_w_fast is None:
+            self._log_w_slow = self._log_w_fast = log_ev
+        else:
+            self._log_w_slow = _log_add(math.log1p(-self.alpha_slow) + self._log_w_slow,
+                                        math.log(self.alpha_slow) + log_ev)
+            fast = math.log1p(-self.alpha_fast) if self.alpha_fast < 1.0 else -math.inf
+            self._log_w_fast = _log_add(fast + self._log_w_fast,
+                                        math.log(self.alpha_fast) + log_ev)
+        if effective_sample_size(self._log_weights[0, :n]) < self.resample_threshold * n:
+            self._resample(u_sel, u_inj)
+
+    def update_landmarks(
+        self,
+        z: ArrayLike,
+        visible: ArrayLike,
+        landmarks: ArrayLike,
+        sensor: LandmarkSensor,
+        rng: np.random.Generator,
+        known_correspondence: bool = True,
+    ) -> None:
+        """:meth:`update` with :func:`landmark_log_likelihood` of ``sensor`` (its kind and R);
+        z ``(N, 2)``, visible ``(N,)``, landmarks ``(L, 2)``. When no measurement is visible
+        the belief is left as it is (an empty scan carries no information, and a likelihood of
+        1 would bias w_slow / w_fast), but the same uniforms are drawn as by an update, so the
+        number of draws per call stays fixed."""
+        vis = np.asarray(visible, dtype=np.bool_).reshape(-1)
+        if not vis.any():
+            self._check_initialized()
+            self._draw_resampling(rng)
+            self.resampled = False
+            self.last_injected = 0
+            self.last_injection_rate = 0.0
+            return
+        ll = landmark_log_likelihood(self.particles, z, vis, landmarks, sensor.kind,
+                                     sensor.noise_cov, known_correspondence)
+        self.update(ll, rng)
+
+    def _draw_resampling(self, rng: np.random.Generator) -> tuple[NDArray, NDArray]:
+        u_sel = rng.random(self.n_particles + 1)
+        u_inj = rng.random((self.n_particles, 5)) if self.augmented else np.empty((0, 5))
+        return u_sel, u_inj
+
+    def resample(self, rng: np.random.Generator) -> None:
+        """Resample now, whatever the ESS (with injection and KLD when on); draws as
+        :meth:`update` does."""
+        self._check_initialized()
+        self._resample(*self._draw_resampling(rng))
+
+    def _resample(self, u_sel: NDArray, u_inj: NDArray) -> None:
+        n = self.n_active
+        src = self._particles[0, :n]
+        lw = self._log_weights[0, :n]
+        fs = self.free_space
+        p_inj = self.injection_rate
+        out = np.empty((self.n_particles, 3))
+        if self.kld:
+            new_n, n_inj = kld_resample(
+                src, lw, u_sel, p_inj, u_inj, fs.values, fs.geom, fs.is_grid, fs.free_cells,
+                self.kld_bins, self.min_particles, self.n_particles, self.kld_err, self.kld_z,
+                out,
+            )
+        else:
+            new_n = n
+            n_inj = resample_particles(
+                src, lw, u_sel, self.resampling == "stratified", p_inj, u_inj, fs.values,
+                fs.geom, fs.is_grid, fs.free_cells, out[:n],
+            )
+        self._particles[0, :new_n] = out[:new_n]
+        self._particles[0, new_n:] = 0.0
+        self._log_weights[0, :new_n] = -math.log(new_n)
+        self._log_weights[0, new_n:] = -math.inf
+        self._counts[0] = new_n
+        self.resampled = True
+        self.last_injected = int(n_inj)
+        self.last_injection_rate = p_inj
+        if p_inj > 0.0:
+            # AMCL's restart of both averages (see the module docstring)
+            self._log_w_slow = self._log_w_fast = None
+
+    # --- statistics --------------------------------------------------------------------------
+
+    def mean(self) -> NDArray[np.float64]:
+        """Weighted mean pose ``(3,)`` (m, m, rad), heading by the circular mean."""
+        out = np.empty(3)
+        weighted_mean(self._particles[0, : self._counts[0]],
+                      self._log_weights[0, : self._counts[0]], out)
+        return out
+
+    def covariance(self) -> NDArray[np.float64]:
+        """Weighted covariance ``(3, 3)``, heading residuals wrapped about the circular mean."""
+        n = self._counts[0]
+        mean = self.mean()
+        out = np.empty((3, 3))
+        weighted_covariance(self._particles[0, :n], self._log_weights[0, :n], mean, out)
+        return out
+
+    def entropy(self) -> float:
+        """Histogram entropy on the ``entropy_bins`` pose grid plus log(cell volume) (nats)."""
+        n = self._counts[0]
+        dx, dy, dth = self.entropy_bins
+        return float(histogram_entropy(self._particles[0, :n], self._log_weights[0, :n],
+                                       dx, dy, dth))
+
+    def effective_sample_size(self) -> float:
+        """ESS ``1 / sum w^2`` of the active particles."""
+        return float(effective_sample_size(self._log_weights[0, : self._counts[0]]))
+
+    def copy(self) -> MCLBelief:
+        """A deep copy (the free space and motion model are immutable and shared)."""
+        out = _copy.copy(self)
+        out._particles = self._particles.copy()
+        out._log_weights = self._log_weights.copy()
+        out._counts = self._counts.copy()
+        return out

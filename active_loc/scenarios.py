@@ -41,8 +41,59 @@ TEXTBOOK: MappingProxyType[str, Any] = MappingProxyType(
 #: of 90 degrees and 6 m: where the robot looks decides what it learns.
 LANDMARK_TRACKING: MappingProxyType[str, Any] = MappingProxyType({})
 
+#: Global localization on landmark maps: the belief starts uniform over the map, MCL with
+#: random-particle injection, a 180-degree range-bearing sensor of 8 m.
+LANDMARK_GLOBAL: MappingProxyType[str, Any] = MappingProxyType(
+    {
+        "belief": "mcl",
+        "initial_belief": "uniform",
+        "n_particles": 2000,
+        "augmented": True,
+        "fov": math.pi,
+        "max_range": 8.0,
+        "horizon": 300,
+    }
+)
+
+#: Global localization on generated office-like grid maps (12 m x 12 m) with a 270-degree,
+#: 60-beam lidar of 8 m and the likelihood field; the scan likelihood is tempered (beams are
+#: not independent) and random particles are injected, as AMCL does.
+GRID_GLOBAL: MappingProxyType[str, Any] = MappingProxyType(
+    {
+        "belief": "mcl",
+        "sensor": "lidar",
+        "map": "rooms",
+        "map_size": (12.0, 12.0),
+        "initial_belief": "uniform",
+        "n_particles": 3000,
+        "likelihood_exponent": 0.1,
+        "augmented": True,
+        "fov": 1.5 * math.pi,
+        "max_range": 8.0,
+        "horizon": 300,
+    }
+)
+
+#: The kidnapped robot: pose tracking on grid maps until, once per episode between 20% and
+#: 60% of the 400-step horizon, the robot is carried to a random free pose unannounced.
+GRID_KIDNAPPED: MappingProxyType[str, Any] = MappingProxyType(
+    {
+        **GRID_GLOBAL,
+        "initial_belief": "gaussian",
+        "kidnap": True,
+        "kidnap_window": (0.2, 0.6),
+        "horizon": 400,
+    }
+)
+
 SCENARIOS: MappingProxyType[str, MappingProxyType[str, Any]] = MappingProxyType(
-    {"textbook": TEXTBOOK, "landmark_tracking": LANDMARK_TRACKING}
+    {
+        "textbook": TEXTBOOK,
+        "landmark_tracking": LANDMARK_TRACKING,
+        "landmark_global": LANDMARK_GLOBAL,
+        "grid_global": GRID_GLOBAL,
+        "grid_kidnapped": GRID_KIDNAPPED,
+    }
 )
 
 

@@ -747,6 +747,11 @@ class MCLBelief:
         kld_z: upper standard normal quantile (AMCL's kld_z 0.99, used as is).
         kld_bins: KLD bin size (dx m, dy m, dtheta rad) (AMCL 0.5 m, 0.5 m, 10 deg).
         entropy_bins: entropy pose-grid cells (dx m, dy m, dtheta rad).
+        likelihood_exponent: the power in (0, 1] each measurement likelihood is raised to
+            before weighting. Lidar beams are not independent (map errors, correlated noise),
+            so the product over beams overstates the evidence and collapses the particle set
+            onto a few hypotheses; tempering it (AMCL subsamples beams for the same reason)
+            keeps global localization from converging falsely. 1 is the plain filter.
 
     Attributes:
         reinitialized: True when a total collapse re-initialized the belief since the start of
@@ -775,7 +780,11 @@ class MCLBelief:
         kld_z: float = 0.99,
         kld_bins: ArrayLike = KLD_BINS,
         entropy_bins: ArrayLike = ENTROPY_BINS,
+        likelihood_exponent: float = 1.0,
     ) -> None:
+        if not (math.isfinite(likelihood_exponent) and 0.0 < likelihood_exponent <= 1.0):
+            raise ValueError(f"MCLBelief.likelihood_exponent must be in (0, 1], got "
+                             f"{likelihood_exponent}")
         if not isinstance(free_space, FreeSpace):
             raise ValueError(f"MCLBelief.free_space must be a FreeSpace, got "
                              f"{type(free_space).__name__}")
@@ -815,6 +824,7 @@ class MCLBelief:
         self.kld_z = float(kld_z)
         self.kld_bins = _check_bins("kld_bins", kld_bins)
         self.entropy_bins = _check_bins("entropy_bins", entropy_bins)
+        self.likelihood_exponent = float(likelihood_exponent)
 
         self._particles = np.zeros((1, n_particles, 3))
         self._log_weights = np.full((1, n_particles), -math.log(n_particles))
@@ -1013,6 +1023,8 @@ class MCLBelief:
                              f"particle ({n}), got shape {np.shape(log_likelihood)}")
         if np.any(np.isnan(ll)) or np.any(ll == np.inf):
             raise ValueError("MCLBelief.update: log_likelihood contains NaN or +inf")
+        if self.likelihood_exponent != 1.0:
+            ll = ll * self.likelihood_exponent  # a tempered likelihood p(z | x)^exponent
         u_sel, u_inj = self._draw_resampling(rng)
         self.resampled = False
         self.last_injected = 0

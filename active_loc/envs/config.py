@@ -63,9 +63,12 @@ class LocalizationConfig:
     known_correspondences: bool = True  # False: identical-looking landmarks (no ids)
     n_beams: int = 60  # lidar: beams evenly spread over the field of view
     lidar_model: str = "likelihood_field"  # the filter's lidar model, or "beam"
-    lidar_sigma_hit: float = 0.2  # lidar: std of a hit reading (m)
+    lidar_noise_std: float = 0.03  # lidar: std of a hit reading of the simulated sensor (m)
+    # lidar: std of a hit in the filter's model (m); wider than the sensor's noise, as AMCL's
+    # default, to absorb map discretization and the beams' correlated errors
+    lidar_sigma_hit: float = 0.2
     # lidar mixture weights (hit, short, max, random), summing to 1, for the simulated sensor
-    # and the beam model; the likelihood field uses hit and random only
+    # and the filter's model (the likelihood field uses hit and random only)
     lidar_mixture: tuple[float, float, float, float] = (0.9, 0.04, 0.03, 0.03)
     lidar_lambda_short: float = 0.1  # rate of the short-reading exponential (1/m)
     unknown_reflects: bool = True  # whether unknown grid cells stop lidar beams
@@ -84,6 +87,8 @@ class LocalizationConfig:
     augmented: bool = False  # MCL: random-particle injection (augmented MCL, for kidnapping)
     kld: bool = False  # MCL: KLD-sampling adaptive particle count
     min_particles: int = 100  # MCL with KLD: the minimum count (AMCL's default)
+    # MCL: the power each scan's likelihood is raised to (see MCLBelief); 1 = the plain filter
+    likelihood_exponent: float = 1.0
 
     # --- agent interface -----------------------------------------------------------------
     action_type: str = "continuous"  # "continuous": Box(-1, 1, (2,)); "discrete": primitives
@@ -159,6 +164,10 @@ class LocalizationConfig:
                 f"min_particles={self.min_particles} must be <= n_particles={self.n_particles}"
             )
         _integer("horizon", self.horizon, 1)
+        if not 0 < self.likelihood_exponent <= 1:
+            raise ValueError(
+                f"likelihood_exponent must be in (0, 1], got {self.likelihood_exponent}"
+            )
         if not 0 < self.resample_threshold <= 1:
             raise ValueError(
                 f"resample_threshold must be in (0, 1], got {self.resample_threshold}"
@@ -177,6 +186,7 @@ class LocalizationConfig:
                 f"got {mixture}"
             )
         _positive("lidar_sigma_hit", self.lidar_sigma_hit)
+        _positive("lidar_noise_std", self.lidar_noise_std)
         _positive("lidar_lambda_short", self.lidar_lambda_short)
         _positive("dt", self.dt)
         _positive("v_max", self.v_max, allow_zero=True)

@@ -99,8 +99,10 @@ WORLD_SIZE = 5
     S_UNCERTAINTY_REWARD,
     S_LOCALIZED,
     S_SUCCESS,
-) = range(13)
-N_STATS = 13
+    S_TERMINAL,  # the episode's goal is reached (terminates with terminate_when_localized)
+    S_KIDNAPPED,  # the robot was kidnapped on this step
+) = range(15)
+N_STATS = 15
 STATE_SIZE = X_STATS + N_STATS
 
 
@@ -115,9 +117,15 @@ class LandmarkModels:
     limits: ControlLimits
 
 
+def build_motion(cfg: LocalizationConfig) -> UnicycleModel:
+    """The unicycle model of a config (dt and the diagonal Q)."""
+    return UnicycleModel(cfg.dt, np.diag(np.square(cfg.motion_noise_std)))
+
+
 def build_models(cfg: LocalizationConfig) -> LandmarkModels:
-    """Motion and sensor models of a config, and the packed parameter vector of the kernels."""
-    motion = UnicycleModel(cfg.dt, np.diag(np.square(cfg.motion_noise_std)))
+    """Motion and sensor models of a landmark config, and the packed parameter vector of the
+    kernels."""
+    motion = build_motion(cfg)
     sensor: LandmarkSensor
     if cfg.sensor == "range_bearing":
         sensor = RangeBearingSensor.from_std(cfg.range_std, cfg.bearing_std, cfg.fov, cfg.max_range)
@@ -158,11 +166,11 @@ def _map_extent(cfg: LocalizationConfig) -> tuple[float, float]:
         return TEXTBOOK_BOUNDS[2] - TEXTBOOK_BOUNDS[0], TEXTBOOK_BOUNDS[3] - TEXTBOOK_BOUNDS[1]
     if isinstance(cfg.map, str):
         return cfg.map_size
-    return _fixed_map(cfg).size
+    return fixed_landmark_map(cfg).size
 
 
-def _fixed_map(cfg: LocalizationConfig) -> LandmarkMap:
-    """The map of a config that does not draw one per episode."""
+def fixed_landmark_map(cfg: LocalizationConfig) -> LandmarkMap:
+    """The landmark map of a config that does not draw one per episode."""
     if isinstance(cfg.map, LandmarkMap):
         return cfg.map
     if isinstance(cfg.map, str):
@@ -250,6 +258,7 @@ def _finish_one(params: NDArray, state: NDArray, world: NDArray, obs: NDArray) -
     success = localized and pos_err <= params[P_TOL_POS] and head_err <= params[P_TOL_HEAD]
     stats[S_LOCALIZED] = 1.0 if localized else 0.0
     stats[S_SUCCESS] = 1.0 if success else 0.0
+    stats[S_TERMINAL] = stats[S_LOCALIZED]
     visible = world[:, W_VISIBLE]
     stats[S_N_VISIBLE] = visible.sum()
     write_belief_observation(
@@ -399,7 +408,7 @@ class LandmarkCore:
         self.batch_size = batch_size
         n = config.max_landmarks
         draws_maps = isinstance(config.map, str) and config.map == "random"
-        self.fixed_map = None if draws_maps else _fixed_map(config)
+        self.fixed_map = None if draws_maps else fixed_landmark_map(config)
         if self.fixed_map is not None and self.fixed_map.n_landmarks > n:
             raise ValueError(
                 f"the map has {self.fixed_map.n_landmarks} landmarks but max_landmarks={n}; "

@@ -14,17 +14,22 @@ from active_loc.envs.landmark_core import (
     S_COLLIDED,
     S_ENTROPY,
     S_HEAD_ERR,
+    S_KIDNAPPED,
     S_LOCALIZED,
     S_N_VISIBLE,
     S_NIS,
     S_POS_ERR,
     S_SUCCESS,
+    S_TERMINAL,
     S_UNCERTAINTY_REWARD,
+    X_COV,
+    X_MEAN,
     X_STATS,
     LandmarkCore,
 )
-from active_loc.envs.observations import belief_observation_space
+from active_loc.envs.particle_core import ParticleCore
 from active_loc.envs.planner_view import PlannerView
+from active_loc.maps import OccupancyGrid
 from active_loc.scenarios import scenario_kwargs
 
 # offsets of the metrics in a row of the core's state
@@ -37,6 +42,8 @@ _SUCCESS = X_STATS + S_SUCCESS
 _UNCERTAINTY = X_STATS + S_UNCERTAINTY_REWARD
 _N_VISIBLE = X_STATS + S_N_VISIBLE
 _NIS = X_STATS + S_NIS
+_TERMINAL = X_STATS + S_TERMINAL
+_KIDNAPPED = X_STATS + S_KIDNAPPED
 
 
 class ActiveLocalizationEnv(gym.Env):
@@ -125,9 +132,15 @@ class ActiveLocalizationEnv(gym.Env):
         self.scenario = scenario
         self.config = LocalizationConfig(**{**scenario_kwargs(scenario), **kwargs})
         self.render_mode = render_mode
-        self.core = LandmarkCore(self.config, batch_size=1)
+        self.core: LandmarkCore | ParticleCore
+        if self.config.belief == "mcl":
+            self.core = ParticleCore(self.config)
+        else:
+            self.core = LandmarkCore(self.config, batch_size=1)
         self.action_space = action_space(self.config.action_type)
-        self.observation_space = belief_observation_space(self.config.max_landmarks)
+        self.observation_space = gym.spaces.Box(
+            -1.0, 1.0, (self.core.obs.shape[1],), dtype=np.float32
+        )
         self._continuous = self.config.action_type == "continuous"
         self._n_actions = len(self.core.models.primitives)
         # config values read on every step, as plain attributes
@@ -154,7 +167,7 @@ class ActiveLocalizationEnv(gym.Env):
         self._has_reset = True
         if self.render_mode is not None:
             self._true_path = [self.core.pose[0, :2].copy()]
-            self._belief_path = [self.core.belief.mean[0, :2].copy()]
+            self._belief_path = [self.core.state[0, X_MEAN : X_MEAN + 2].copy()]
         row = self.core.state[0].tolist()
         info = self._info(row, False, row[_UNCERTAINTY])
         if self.render_mode == "human":
@@ -183,10 +196,10 @@ class ActiveLocalizationEnv(gym.Env):
         reward = uncertainty - self._step_cost - (self._collision_penalty if collided else 0.0)
         if self.render_mode is not None:
             self._true_path.append(core.pose[0, :2].copy())
-            self._belief_path.append(core.belief.mean[0, :2].copy())
+            self._belief_path.append(core.state[0, X_MEAN : X_MEAN + 2].copy())
             if self.render_mode == "human":
                 self.render()
-        terminated = self._terminate_when_localized and info["localized"]
+        terminated = self._terminate_when_localized and row[_TERMINAL] > 0.5
         return core.obs[0].copy(), reward, terminated, False, info
 
     def render(self) -> NDArray[np.uint8] | None:
@@ -196,9 +209,10 @@ class ActiveLocalizationEnv(gym.Env):
         if not self._has_reset:
             raise RuntimeError("call reset() before render()")
         if self._renderer is None:
-            from active_loc.envs.rendering import LandmarkRenderer
+            from active_loc.envs.rendering import GridRenderer, LandmarkRenderer
 
-            self._renderer = LandmarkRenderer()
+            grid = isinstance(self.core.maps[0], OccupancyGrid)
+            self._renderer = GridRenderer() if grid else LandmarkRenderer()
         frame = self._frame()
         if self.render_mode == "rgb_array":
             return self._renderer.render_rgb(frame)
@@ -226,6 +240,7 @@ class ActiveLocalizationEnv(gym.Env):
             action_space=self.action_space,
             limits=self.core.models.limits,
             step=self._steps,
+            known_correspondences=self.config.known_correspondences,
         )
 
     # -- helpers ----------------------------------------------------------------------------
@@ -271,29 +286,43 @@ class ActiveLocalizationEnv(gym.Env):
             },
             "n_visible": int(row[_N_VISIBLE]),
             "nis": row[_NIS],
+            "kidnapped": row[_KIDNAPPED] > 0.5,
         }
 
     def _frame(self) -> Any:
-        from active_loc.envs.rendering import LandmarkFrame
+        """What the renderer draws this step (truth included: rendering is for people)."""
+        from active_loc.envs.rendering import GridFrame, LandmarkFrame
 
         core = self.core
         lmap = core.maps[0]
         assert lmap is not None
+        row = core.state[0]
+        particles = weights = None
+        if isinstance(core, ParticleCore):
+            assert core.belief is not None
+            particles, weights = core.belief.particles.copy(), core.belief.weights.copy()
+        common = {
+            "true_pose": core.pose[0].copy(),
+            "mean": row[X_MEAN : X_MEAN + 3].copy(),
+            "cov": row[X_COV : X_COV + 9].reshape(3, 3).copy(),
+            "true_path": np.array(self._true_path),
+            "belief_path": np.array(self._belief_path),
+            "step": self._steps,
+            "entropy": float(row[_ENTROPY]),
+            "title": self.spec.id if self.spec is not None else type(self).__name__,
+            "particles": particles,
+            "weights": weights,
+        }
+        if isinstance(lmap, OccupancyGrid):
+            assert isinstance(core, ParticleCore) and core.lidar is not None
+            return GridFrame(
+                grid=lmap, beam_angles=core.lidar.beam_angles, ranges=core.ranges[0].copy(),
+                max_range=core.lidar.max_range, kidnapped=bool(row[_KIDNAPPED] > 0.5), **common,
+            )
         n = lmap.n_landmarks
         return LandmarkFrame(
-            bounds=lmap.bounds,
-            landmarks=lmap.positions,
-            visible=core.visible[0, :n].copy(),
-            true_pose=core.pose[0].copy(),
-            mean=core.belief.mean[0].copy(),
-            cov=core.belief.cov[0].copy(),
-            true_path=np.array(self._true_path),
-            belief_path=np.array(self._belief_path),
-            fov=self.config.fov,
-            max_range=self.config.max_range,
-            step=self._steps,
-            entropy=float(core.state[0, _ENTROPY]),
-            title=self.spec.id if self.spec is not None else type(self).__name__,
+            bounds=lmap.bounds, landmarks=lmap.positions, visible=core.visible[0, :n].copy(),
+            fov=self.config.fov, max_range=self.config.max_range, **common,
         )
 
 

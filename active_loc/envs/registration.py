@@ -10,6 +10,9 @@ ENTRY_POINT = "active_loc.envs.localization_env:ActiveLocalizationEnv"
 ENV_IDS: tuple[tuple[str, str, int], ...] = (
     ("ActiveLoc/Textbook-v0", "textbook", 150),
     ("ActiveLoc/LandmarkEKF-v0", "landmark_tracking", 200),
+    ("ActiveLoc/LandmarkMCL-v0", "landmark_global", 300),
+    ("ActiveLoc/GridMCL-v0", "grid_global", 300),
+    ("ActiveLoc/GridMCLKidnapped-v0", "grid_kidnapped", 400),
 )
 
 

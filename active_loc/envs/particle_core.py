@@ -1,0 +1,407 @@
+"""The simulator of one localization episode with a Monte Carlo (particle) belief.
+
+The same step order as :mod:`active_loc.envs.landmark_core`, for ``belief="mcl"``:
+
+    controls -> (kidnapping) -> true motion (noise, blocked by walls) -> scan from the true pose
+             -> MCL predict + weight + resample (the filter never sees the true pose)
+             -> metrics (histogram entropy, errors) and the observation row
+
+on a landmark map (landmark sensors, known or identical-looking landmarks) or an occupancy
+grid (lidar). A step costs hundreds of microseconds in the particle kernels, so this holder is
+plain Python around them, one episode (B = 1). It writes its results into the same ``state``
+row layout as the landmark core, so the env reads both the same way.
+
+Observation (float32, in [-1, 1]): the belief header of :mod:`active_loc.envs.observations`,
+then an ``8 x 8`` histogram of the particle mass over the map (a picture of a multi-modal
+belief), then the scan: landmark slots on landmark maps, ranges / max_range for the lidar.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from active_loc.beliefs.mcl import FreeSpace, MCLBelief
+from active_loc.beliefs.particle_stats import ENTROPY_BINS
+from active_loc.envs.actions import ControlLimits
+from active_loc.envs.config import LocalizationConfig
+from active_loc.envs.landmark_core import (
+    B_COUNT,
+    B_WALLS,
+    N_PARAMS,
+    N_STATS,
+    P_SCALE,
+    S_COLLIDED,
+    S_ENTROPY,
+    S_HEAD_ERR,
+    S_HEAD_STD,
+    S_KIDNAPPED,
+    S_LOCALIZED,
+    S_LOGDET,
+    S_N_VISIBLE,
+    S_POS_ERR,
+    S_POS_STD,
+    S_SUCCESS,
+    S_TERMINAL,
+    S_TRACE,
+    S_UNCERTAINTY_REWARD,
+    STATE_SIZE,
+    X_BOX,
+    X_COV,
+    X_MEAN,
+    X_POSE,
+    X_STATS,
+    LandmarkModels,
+    build_models,
+    build_motion,
+    fixed_landmark_map,
+)
+from active_loc.envs.observations import (
+    BELIEF_HEADER,
+    SLOT_SIZE,
+    write_belief_header,
+    write_landmark_slots,
+)
+from active_loc.envs.rewards import REWARD_CODES, uncertainty_reward
+from active_loc.geometry import wrap_angle
+from active_loc.maps import LandmarkMap, OccupancyGrid, random_landmark_map
+from active_loc.maps.generators import GENERATORS
+from active_loc.motion import move_within_bounds
+from active_loc.sensors.lidar import LidarSensor, cast_ray
+
+HISTOGRAM_CELLS = 8
+
+
+def particle_observation_size(config: LocalizationConfig) -> int:
+    """Length of the observation of a particle belief."""
+    scan = config.n_beams if config.uses_grid else SLOT_SIZE * config.max_landmarks
+    return BELIEF_HEADER + HISTOGRAM_CELLS * HISTOGRAM_CELLS + scan
+
+
+def build_lidar(cfg: LocalizationConfig, simulated: bool = False) -> LidarSensor:
+    """The lidar of a grid config: the filter's model, or with ``simulated`` the real sensor
+    (the same but for the hit noise, ``lidar_noise_std`` instead of ``lidar_sigma_hit``)."""
+    z_hit, z_short, z_max, z_rand = cfg.lidar_mixture
+    sigma = cfg.lidar_noise_std if simulated else cfg.lidar_sigma_hit
+    return LidarSensor(
+        n_beams=cfg.n_beams, fov=cfg.fov, max_range=cfg.max_range, sigma_hit=sigma,
+        z_hit=z_hit, z_short=z_short, z_max=z_max, z_rand=z_rand,
+        lambda_short=cfg.lidar_lambda_short, model=cfg.lidar_model,  # type: ignore[arg-type]
+        unknown_reflects=cfg.unknown_reflects,
+    )
+
+
+class ParticleCore:
+    """One episode with an MCL belief, on a landmark map or an occupancy grid.
+
+    Offers what :class:`active_loc.envs.localization_env.ActiveLocalizationEnv` uses of a core:
+    ``state`` ``(1, STATE_SIZE)``, ``obs`` ``(1, D)``, ``actions`` ``(1, 2)``,
+    ``reset_member(0, rng)``, ``step(rngs)``, ``belief``, ``maps``, ``models``.
+    """
+
+    batch_size = 1
+
+    def __init__(self, config: LocalizationConfig) -> None:
+        if config.belief != "mcl":
+            raise ValueError(f"ParticleCore runs belief='mcl', got {config.belief!r}")
+        self.config = config
+        self.grid_mode = config.uses_grid
+        if self.grid_mode:
+            self.lidar: LidarSensor | None = build_lidar(config)
+            self.true_lidar: LidarSensor | None = build_lidar(config, simulated=True)
+            limits = ControlLimits(
+                config.action_type, config.dt, config.v_min, config.v_max, config.omega_max
+            )
+            params = np.zeros(N_PARAMS)
+            params[P_SCALE] = config.max_range
+            self.models = LandmarkModels(
+                build_motion(config), self.lidar, params, limits.primitives(), limits
+            )
+        else:
+            self.lidar = self.true_lidar = None
+            self.models = build_models(config)
+        self.fixed_map = self._fixed_map()
+        self.maps: list[LandmarkMap | OccupancyGrid | None] = [None]
+        self.state = np.zeros((1, STATE_SIZE))
+        self.obs = np.zeros((1, particle_observation_size(config)), dtype=np.float32)
+        self.actions = np.zeros((1, 2))
+        n = config.max_landmarks
+        self.z = np.zeros((1, n, 2))
+        self.visible = np.zeros((1, n), dtype=np.bool_)
+        self.ranges = np.zeros((1, config.n_beams))
+        self.landmarks = np.zeros((1, n, 2))
+        self.belief: MCLBelief | None = None
+        self._free: FreeSpace | None = None
+        self._grid_arrays: tuple | None = None
+        self._distance: NDArray[np.float64] | None = None
+        self.t = 0
+        self.kidnap_step = -1
+        self.kidnapped = False  # the kidnapping of this episode has happened
+        self._bin_variance = np.diag(np.square(ENTROPY_BINS) / 12.0)
+
+    # -- named views, as the landmark core has them --------------------------------------------
+
+    @property
+    def pose(self) -> NDArray[np.float64]:
+        """``(1, 3)`` true pose (a view)."""
+        return self.state[:, X_POSE : X_POSE + 3]
+
+    @property
+    def stats(self) -> NDArray[np.float64]:
+        """``(1, N_STATS)`` metrics of the last step (a view)."""
+        return self.state[:, X_STATS : X_STATS + N_STATS]
+
+    # -- reset ---------------------------------------------------------------------------------
+
+    def reset_member(self, b: int, rng: np.random.Generator) -> None:
+        """New episode: map, true start, initial belief, kidnapping step; no scan yet."""
+        cfg = self.config
+        lmap = self.fixed_map if self.fixed_map is not None else self._draw_map(rng)
+        if lmap is not self.maps[0]:
+            self._bind_map(lmap)
+        self.maps[0] = lmap
+        row = self.state[0]
+        row[:] = 0.0
+        x_min, y_min, x_max, y_max = lmap.bounds
+        row[X_BOX : X_BOX + 4] = x_min, y_min, x_max, y_max
+        row[X_BOX + B_WALLS] = 1.0
+        if cfg.start == "fixed":
+            row[X_POSE : X_POSE + 3] = cfg.start_pose
+        else:
+            row[X_POSE : X_POSE + 3] = self._random_free_pose(rng)
+        assert self._free is not None
+        self.belief = MCLBelief(
+            self._free, self.models.motion, cfg.n_particles, resampling=cfg.resampling,
+            resample_threshold=cfg.resample_threshold, augmented=cfg.augmented, kld=cfg.kld,
+            min_particles=min(cfg.min_particles, cfg.n_particles),
+            likelihood_exponent=cfg.likelihood_exponent,
+        )
+        if cfg.initial_belief == "uniform":
+            self.belief.initialize_uniform(rng)
+        else:
+            mean = row[X_POSE : X_POSE + 3] + rng.standard_normal(3) * cfg.initial_error_std
+            mean[2] = wrap_angle(mean[2])
+            cov = np.diag(np.square(cfg.initial_belief_std))
+            self.belief.initialize_gaussian(mean, cov, rng)
+        self.t = 0
+        self.kidnapped = False
+        self.kidnap_step = -1
+        if cfg.kidnap:
+            lo, hi = cfg.kidnap_window
+            first, last = max(1, round(lo * cfg.horizon)), max(1, round(hi * cfg.horizon))
+            self.kidnap_step = int(rng.integers(first, last + 1))
+        self.z[:] = 0.0
+        self.visible[:] = False
+        self.ranges[:] = 0.0
+        self._finish(collided=False, kidnapped_now=False, first=True)
+
+    def _fixed_map(self) -> LandmarkMap | OccupancyGrid | None:
+        cfg = self.config
+        if not self.grid_mode:
+            if isinstance(cfg.map, str) and cfg.map == "random":
+                return None
+            return fixed_landmark_map(cfg)
+        if isinstance(cfg.map, OccupancyGrid):
+            return cfg.map
+        if cfg.map in GENERATORS:
+            return None
+        path = Path(cfg.map)
+        if not path.is_file():
+            raise ValueError(f"map={cfg.map!r}: no such map file")
+        return OccupancyGrid.load(path, unknown_reflects=cfg.unknown_reflects)
+
+    def _draw_map(self, rng: np.random.Generator) -> LandmarkMap | OccupancyGrid:
+        cfg = self.config
+        if self.grid_mode:
+            return GENERATORS[cfg.map](rng, size_m=cfg.map_size)
+        return random_landmark_map(rng, cfg.map_size, cfg.n_landmarks)
+
+    def _bind_map(self, lmap: LandmarkMap | OccupancyGrid) -> None:
+        """Per-map arrays of the filter and the simulator."""
+        if isinstance(lmap, OccupancyGrid):
+            self._free = FreeSpace.from_grid(lmap.values, lmap.resolution, lmap.origin)
+            self._grid_arrays = lmap.kernel_arrays()
+            self._distance = lmap.distance_field()
+            return
+        if lmap.n_landmarks > self.config.max_landmarks:
+            raise ValueError(
+                f"the map has {lmap.n_landmarks} landmarks but max_landmarks="
+                f"{self.config.max_landmarks}; raise max_landmarks"
+            )
+        self._free = FreeSpace.from_box(*lmap.bounds)
+        self.landmarks[:] = 0.0
+        self.landmarks[0, : lmap.n_landmarks] = lmap.positions
+        self.state[0, X_BOX + B_COUNT] = lmap.n_landmarks
+
+    def _random_free_pose(self, rng: np.random.Generator) -> NDArray[np.float64]:
+        """A uniform free pose; on landmark maps 1 m (at most a quarter) away from the border."""
+        lmap = self.maps[0]
+        if isinstance(lmap, OccupancyGrid):
+            xy = lmap.sample_free(rng, 1)[0]
+            return np.array([xy[0], xy[1], rng.uniform(-np.pi, np.pi)])
+        assert lmap is not None
+        x_min, y_min, x_max, y_max = lmap.bounds
+        margin = min(1.0, 0.25 * (x_max - x_min), 0.25 * (y_max - y_min))
+        u = rng.random(3)
+        return np.array([
+            x_min + margin + u[0] * (x_max - x_min - 2 * margin),
+            y_min + margin + u[1] * (y_max - y_min - 2 * margin),
+            -np.pi + 2 * np.pi * u[2],
+        ])
+
+    # -- step ----------------------------------------------------------------------------------
+
+    def step(self, rngs: Sequence[np.random.Generator]) -> int:
+        """Advance the episode with the action in :attr:`actions`; -1, or 0 if not finite."""
+        action = self.actions[0]
+        if not np.all(np.isfinite(action)):
+            return 0
+        rng = rngs[0]
+        limits = self.models.limits
+        if limits.action_type == "continuous":
+            v, omega = limits.decode(action)
+        else:
+            v, omega = float(action[0]), float(action[1])
+        self.t += 1
+        kidnapped_now = self.t == self.kidnap_step
+        if kidnapped_now:
+            self.state[0, X_POSE : X_POSE + 3] = self._random_free_pose(rng)
+            self.kidnapped = True
+        collided = self._move_truth(v, omega, rng)
+        belief = self.belief
+        assert belief is not None
+        belief.predict(np.array([0.0 if collided else v, omega]), rng)
+        pose = self.state[0, X_POSE : X_POSE + 3]
+        lmap = self.maps[0]
+        if isinstance(lmap, OccupancyGrid):
+            assert self.lidar is not None and self.true_lidar is not None
+            ranges = self.true_lidar.measure(pose, self._grid_arrays, rng)
+            self.ranges[0] = ranges
+            log_lik = self.lidar.log_likelihood(
+                ranges, belief.particles, self._grid_arrays, self._distance
+            )
+            belief.update(log_lik, rng)
+        else:
+            assert lmap is not None
+            sensor = self.models.sensor
+            z, visible = sensor.measure(pose, lmap.positions, rng)
+            n = lmap.n_landmarks
+            self.z[0, :n] = z
+            self.visible[0, :n] = visible
+            belief.update_landmarks(
+                z, visible, lmap.positions, sensor, rng,
+                known_correspondence=self.config.known_correspondences,
+            )
+        self._finish(collided, kidnapped_now, first=False)
+        return -1
+
+    def _move_truth(self, v: float, omega: float, rng: np.random.Generator) -> bool:
+        """Move the true robot with noise; returns whether walls blocked the translation."""
+        pose = self.state[0, X_POSE : X_POSE + 3]
+        noise = self.models.motion.noise_root @ rng.standard_normal(3)
+        lmap = self.maps[0]
+        if not isinstance(lmap, OccupancyGrid):
+            box = self.state[0, X_BOX : X_BOX + 4]
+            return bool(move_within_bounds(pose, v, omega, self.config.dt, noise, box, True))
+        dt = self.config.dt
+        dx = v * np.cos(pose[2]) * dt + noise[0]
+        dy = v * np.sin(pose[2]) * dt + noise[1]
+        pose[2] = wrap_angle(pose[2] + omega * dt + noise[2])
+        distance = float(np.hypot(dx, dy))
+        if distance == 0.0:
+            return False
+        # blocked if the straight move crosses an occupied or unknown cell (no tunnelling)
+        values, res, ox, oy, c, s = self._grid_arrays  # type: ignore[misc]
+        free_run = cast_ray(
+            values, res, ox, oy, c, s, pose[0], pose[1], float(np.arctan2(dy, dx)), distance,
+            True,
+        )
+        target = np.array([pose[0] + dx, pose[1] + dy])
+        if free_run < distance or not lmap.is_free(target):
+            return True
+        pose[0], pose[1] = target
+        return False
+
+    # -- metrics and observation ---------------------------------------------------------------
+
+    def _finish(self, collided: bool, kidnapped_now: bool, first: bool) -> None:
+        cfg = self.config
+        belief = self.belief
+        assert belief is not None
+        row = self.state[0]
+        stats = row[X_STATS : X_STATS + N_STATS]
+        mean = belief.mean()
+        cov = belief.covariance()
+        row[X_MEAN : X_MEAN + 3] = mean
+        row[X_COV : X_COV + 9] = cov.ravel()
+        entropy = belief.entropy()
+        # a particle set stands for a density at the resolution of the entropy bins, so its log
+        # det adds a bin's own variance (d^2 / 12): finite even when every particle coincides
+        sign, logdet = np.linalg.slogdet(cov + self._bin_variance)
+        logdet = float(logdet) if sign > 0 else -np.inf
+        trace = float(np.trace(cov))
+        stats[S_UNCERTAINTY_REWARD] = 0.0 if first else uncertainty_reward(
+            REWARD_CODES[cfg.reward], stats[S_ENTROPY], entropy, stats[S_LOGDET], logdet,
+            stats[S_TRACE], trace,
+        )
+        stats[S_ENTROPY] = entropy
+        stats[S_LOGDET] = logdet
+        stats[S_TRACE] = trace
+        pose = row[X_POSE : X_POSE + 3]
+        pos_err = float(np.hypot(pose[0] - mean[0], pose[1] - mean[1]))
+        head_err = float(abs(wrap_angle(pose[2] - mean[2])))
+        pos_std = float(np.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0)))
+        head_std = float(np.sqrt(max(cov[2, 2], 0.0)))
+        localized = pos_std <= cfg.localized_position_std and head_std <= cfg.localized_heading_std
+        # with a kidnapping ahead, localizing now is not yet the end of the task
+        kidnap_pending = cfg.kidnap and not self.kidnapped
+        success = (
+            localized
+            and not kidnap_pending
+            and pos_err <= cfg.success_position_tol
+            and head_err <= cfg.success_heading_tol
+        )
+        stats[S_POS_ERR] = pos_err
+        stats[S_HEAD_ERR] = head_err
+        stats[S_POS_STD] = pos_std
+        stats[S_HEAD_STD] = head_std
+        stats[S_COLLIDED] = 1.0 if collided else 0.0
+        stats[S_LOCALIZED] = 1.0 if localized else 0.0
+        stats[S_SUCCESS] = 1.0 if success else 0.0
+        stats[S_TERMINAL] = 1.0 if localized and not kidnap_pending else 0.0
+        stats[S_KIDNAPPED] = 1.0 if kidnapped_now else 0.0
+        stats[S_N_VISIBLE] = float(self.visible[0].sum()) if not self.grid_mode else 0.0
+        self._write_observation(mean, cov, entropy)
+
+    def _write_observation(self, mean: NDArray, cov: NDArray, entropy: float) -> None:
+        out = self.obs[0]
+        row = self.state[0]
+        bounds = row[X_BOX : X_BOX + 4]
+        write_belief_header(mean, cov, entropy, bounds, out)
+        # where the particle mass is, on a coarse grid over the map
+        belief = self.belief
+        assert belief is not None
+        particles, weights = belief.particles, belief.weights
+        cells = HISTOGRAM_CELLS
+        fx = (particles[:, 0] - bounds[0]) / (bounds[2] - bounds[0])
+        fy = (particles[:, 1] - bounds[1]) / (bounds[3] - bounds[1])
+        ix = np.clip((fx * cells).astype(np.int64), 0, cells - 1)
+        iy = np.clip((fy * cells).astype(np.int64), 0, cells - 1)
+        hist = np.bincount(iy * cells + ix, weights=weights, minlength=cells * cells)
+        start = BELIEF_HEADER
+        out[start : start + cells * cells] = np.clip(hist, 0.0, 1.0)
+        start += cells * cells
+        if self.grid_mode:
+            assert self.lidar is not None
+            out[start:] = np.clip(self.ranges[0] / self.lidar.max_range, 0.0, 1.0)
+        else:
+            lmap = self.maps[0]
+            assert isinstance(lmap, LandmarkMap)
+            write_landmark_slots(
+                mean, self.z[0], self.visible[0], self.landmarks[0], lmap.n_landmarks,
+                self.models.sensor.kind, float(self.models.params[P_SCALE]), out[start:],
+            )
+

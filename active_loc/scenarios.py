@@ -56,8 +56,9 @@ LANDMARK_GLOBAL: MappingProxyType[str, Any] = MappingProxyType(
 )
 
 #: Global localization on generated office-like grid maps (12 m x 12 m) with a 270-degree,
-#: 60-beam lidar of 8 m and the likelihood field; the scan likelihood is tempered (beams are
-#: not independent) and random particles are injected, as AMCL does.
+#: 60-beam lidar of 8 m and the likelihood field; as in AMCL, the particle count adapts by KLD
+#: sampling (10000 down to 500), random particles are injected, and the scan likelihood is
+#: tempered (beams are not independent).
 GRID_GLOBAL: MappingProxyType[str, Any] = MappingProxyType(
     {
         "belief": "mcl",
@@ -65,7 +66,9 @@ GRID_GLOBAL: MappingProxyType[str, Any] = MappingProxyType(
         "map": "rooms",
         "map_size": (12.0, 12.0),
         "initial_belief": "uniform",
-        "n_particles": 3000,
+        "n_particles": 10000,
+        "kld": True,
+        "min_particles": 500,
         "likelihood_exponent": 0.1,
         "augmented": True,
         "fov": 1.5 * math.pi,

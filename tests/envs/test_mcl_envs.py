@@ -1,0 +1,147 @@
+"""The Monte Carlo localization envs: the chapter's problem 2, global localization, symmetric
+maps, the kidnapped robot, ROS maps as ``map=``, and the particle belief's reported figures."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import active_loc  # noqa: F401  (registers the ids)
+from active_loc.agents import TextbookAgent
+from active_loc.beliefs.particle_stats import ENTROPY_BINS
+from active_loc.envs.landmark_core import S_LOGDET, S_TRACE, X_COV, X_MEAN
+from active_loc.geometry import wrap_angle
+
+SHARED_MAPS = Path(__file__).resolve().parents[3] / "shared" / "maps"
+BEAMS = 60
+
+
+def wander(observation: np.ndarray, max_range: float = 8.0) -> int:
+    """A passive wanderer for grid maps: forward, turn left when the scan shows a wall ahead.
+    It reads the lidar part of the observation, never the belief."""
+    scan = observation[-BEAMS:]
+    ahead = scan[BEAMS // 2 - 3 : BEAMS // 2 + 4].min() * max_range
+    return 1 if ahead > 1.0 else 4
+
+
+def particle_mass_near(belief: object, center: np.ndarray) -> float:
+    """Weight of the particles within 1 m and 0.5 rad of ``center`` (3,)."""
+    particles, weights = belief.particles, belief.weights  # type: ignore[attr-defined]
+    close = np.hypot(*(particles[:, :2] - center[:2]).T) < 1.0
+    aligned = np.abs(wrap_angle(particles[:, 2] - center[2])) < 0.5
+    return float(weights[close & aligned].sum())
+
+
+def test_textbook_with_mcl_is_problem_2() -> None:
+    env = gym.make("ActiveLoc/Textbook-v0", belief="mcl")
+    core = env.unwrapped.core
+    assert core.config.n_particles == 1000
+    agent = TextbookAgent()
+    errors = []
+    for seed in range(5):
+        obs, _ = env.reset(seed=seed)
+        done = False
+        while not done:
+            action = agent.act(obs, env.unwrapped.planner_view())
+            obs, _, terminated, truncated, _ = env.step(action)
+            done = terminated or truncated
+            error = core.pose[0] - core.state[0, X_MEAN : X_MEAN + 3]
+            error[2] = wrap_angle(error[2])
+            errors.append(error)
+    rmse = np.sqrt(np.mean(np.square(errors), axis=0))
+    print(f"Textbook-v0 belief='mcl', 5 runs: RMSE x {rmse[0]:.3f} m, y {rmse[1]:.3f} m, "
+          f"theta {rmse[2]:.3f} rad")
+    assert rmse[0] < 0.2 and rmse[1] < 0.2 and rmse[2] < 0.06
+
+
+def test_passive_wanderer_localizes_globally_on_landmark_maps() -> None:
+    """A constant-curvature wanderer (passive: it never looks at the belief) on 100 seeded
+    random landmark maps, belief uniform at the start: localized and right after 250 steps."""
+    env = gym.make("ActiveLoc/LandmarkMCL-v0", terminate_when_localized=False)
+    successes = 0
+    for seed in range(100):
+        env.reset(seed=seed)
+        for _ in range(250):
+            _, _, _, _, info = env.step(np.array([0.2, 0.5], dtype=np.float32))
+        successes += info["is_success"]
+    print(f"LandmarkMCL-v0 passive wanderer: {successes}/100 localized")
+    assert successes >= 95
+
+
+def test_symmetric_arena_leaves_passive_localization_ambiguous() -> None:
+    """In the pillar arena, equal to its own 180-degree rotation, the wanderer's belief settles
+    as often on the mirrored pose as on the true one: no passive strategy can tell them apart."""
+    env = gym.make(
+        "ActiveLoc/GridMCL-v0", map="pillars", map_size=(12.0, 8.0), action_type="discrete",
+        terminate_when_localized=False,
+    )
+    near_truth = near_mirror = 0
+    for seed in range(10):
+        obs, _ = env.reset(seed=seed)
+        for _ in range(60):
+            obs, *_ = env.step(wander(obs))
+        core = env.unwrapped.core
+        x_min, y_min, x_max, y_max = core.maps[0].bounds
+        pose = core.pose[0]
+        mirror = np.array([x_min + x_max - pose[0], y_min + y_max - pose[1], pose[2] + np.pi])
+        near_truth += particle_mass_near(core.belief, pose) > 0.25
+        near_mirror += particle_mass_near(core.belief, mirror) > 0.25
+    print(f"pillar arena: mass on the true pose in {near_truth}/10, on its mirror in "
+          f"{near_mirror}/10")
+    assert near_truth >= 2 and near_mirror >= 2
+
+
+def test_kidnapping_happens_once_inside_its_window_and_success_waits_for_it() -> None:
+    env = gym.make("ActiveLoc/GridMCLKidnapped-v0", action_type="discrete")
+    config = env.unwrapped.config
+    lo, hi = (round(f * config.horizon) for f in config.kidnap_window)
+    for seed in range(3):
+        obs, info = env.reset(seed=seed)
+        assert not info["kidnapped"]
+        kidnap_steps = []
+        for step in range(1, hi + 2):
+            before = env.unwrapped.core.pose[0].copy()
+            obs, _, terminated, _, info = env.step(wander(obs))
+            if info["kidnapped"]:
+                kidnap_steps.append(step)
+                assert np.hypot(*(env.unwrapped.core.pose[0, :2] - before[:2])) > 0.0
+            elif not kidnap_steps:
+                # before the kidnapping, no success and no termination, however confident
+                assert not info["is_success"] and not terminated
+        assert len(kidnap_steps) == 1 and lo <= kidnap_steps[0] <= hi
+
+
+def test_grid_env_runs_on_a_ros_map_file() -> None:
+    path = SHARED_MAPS / "tb3_sandbox.yaml"
+    if not path.is_file():
+        pytest.skip(f"{path} not found: CI has ../shared beside the checkout")
+    env = gym.make("ActiveLoc/GridMCL-v0", map=str(path), n_particles=2000, kld=False)
+    obs, _ = env.reset(seed=0)
+    grid = env.unwrapped.core.maps[0]
+    assert grid.shape == (384, 384)
+    assert grid.is_free(env.unwrapped.core.pose[:, :2])[0]
+    for _ in range(5):
+        obs, *_ = env.step(env.action_space.sample())
+    assert env.observation_space.contains(obs)
+
+
+def test_a_missing_ros_map_file_is_a_clear_error(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="no such map file"):
+        gym.make("ActiveLoc/GridMCL-v0", map=str(tmp_path / "nowhere.yaml"))
+
+
+def test_particle_log_det_is_finite_and_matches_the_binned_covariance() -> None:
+    env = gym.make("ActiveLoc/LandmarkMCL-v0", reward="logdet")
+    env.reset(seed=0)
+    bin_variance = np.square(ENTROPY_BINS) / 12.0
+    for _ in range(20):
+        _, reward, *_ = env.step(env.action_space.sample())
+        assert np.isfinite(reward)
+        row = env.unwrapped.core.state[0]
+        cov = row[X_COV : X_COV + 9].reshape(3, 3)
+        logdet = np.linalg.slogdet(cov + np.diag(bin_variance))[1]
+        assert env.unwrapped.core.stats[0, S_LOGDET] == pytest.approx(logdet, abs=1e-9)
+        assert env.unwrapped.core.stats[0, S_TRACE] == pytest.approx(np.trace(cov), abs=1e-12)

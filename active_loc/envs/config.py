@@ -85,6 +85,10 @@ class LocalizationConfig:
     resampling: str = "systematic"  # MCL: "systematic" (low variance) or "stratified"
     resample_threshold: float = 0.5  # MCL: resample when ESS < threshold * particles
     augmented: bool = False  # MCL: random-particle injection (augmented MCL, for kidnapping)
+    # augmented MCL: smoothing rates of the long- and short-term likelihood averages (AMCL's
+    # recovery_alpha_slow / _fast); injection rate = max(0, 1 - w_fast / w_slow)
+    recovery_alpha_slow: float = 0.001
+    recovery_alpha_fast: float = 0.1
     kld: bool = False  # MCL: KLD-sampling adaptive particle count
     min_particles: int = 100  # MCL with KLD: the minimum count (AMCL's default)
     # MCL: the power each scan's likelihood is raised to (see MCLBelief); 1 = the plain filter
@@ -164,6 +168,11 @@ class LocalizationConfig:
                 f"min_particles={self.min_particles} must be <= n_particles={self.n_particles}"
             )
         _integer("horizon", self.horizon, 1)
+        if not 0 < self.recovery_alpha_slow < self.recovery_alpha_fast <= 1:
+            raise ValueError(
+                "recovery rates must satisfy 0 < recovery_alpha_slow < recovery_alpha_fast <= 1, "
+                f"got {self.recovery_alpha_slow}, {self.recovery_alpha_fast}"
+            )
         if not 0 < self.likelihood_exponent <= 1:
             raise ValueError(
                 f"likelihood_exponent must be in (0, 1], got {self.likelihood_exponent}"

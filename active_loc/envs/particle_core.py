@@ -175,7 +175,8 @@ class ParticleCore:
         assert self._free is not None
         self.belief = MCLBelief(
             self._free, self.models.motion, cfg.n_particles, resampling=cfg.resampling,
-            resample_threshold=cfg.resample_threshold, augmented=cfg.augmented, kld=cfg.kld,
+            resample_threshold=cfg.resample_threshold, augmented=cfg.augmented,
+            alpha_slow=cfg.recovery_alpha_slow, alpha_fast=cfg.recovery_alpha_fast, kld=cfg.kld,
             min_particles=min(cfg.min_particles, cfg.n_particles),
             likelihood_exponent=cfg.likelihood_exponent,
         )

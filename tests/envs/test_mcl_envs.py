@@ -145,3 +145,33 @@ def test_particle_log_det_is_finite_and_matches_the_binned_covariance() -> None:
         logdet = np.linalg.slogdet(cov + np.diag(bin_variance))[1]
         assert env.unwrapped.core.stats[0, S_LOGDET] == pytest.approx(logdet, abs=1e-9)
         assert env.unwrapped.core.stats[0, S_TRACE] == pytest.approx(np.trace(cov), abs=1e-12)
+
+
+def kidnapped_recoveries(augmented: bool, seeds: range) -> list[bool]:
+    """Success at the end of each GridMCLKidnapped-v0 episode (the wanderer drives)."""
+    env = gym.make(
+        "ActiveLoc/GridMCLKidnapped-v0", action_type="discrete", augmented=augmented,
+        terminate_when_localized=False,
+    )
+    outcomes = []
+    for seed in seeds:
+        obs, info = env.reset(seed=seed)
+        done = False
+        while not done:
+            obs, _, _, truncated, info = env.step(wander(obs))
+            done = truncated
+        outcomes.append(bool(info["is_success"]))
+    return outcomes
+
+
+def test_injection_brings_the_kidnapped_robot_back() -> None:
+    """With random-particle injection the filter re-localizes after the kidnapping in 9 of 10
+    episodes, and more often than without it. (Without injection the filter still recovers
+    sometimes: when every particle runs into a wall the belief collapses and re-initializes.)"""
+    seeds = range(10)
+    with_injection = kidnapped_recoveries(True, seeds)
+    without = kidnapped_recoveries(False, seeds)
+    print(f"GridMCLKidnapped-v0: re-localized {sum(with_injection)}/10 with injection, "
+          f"{sum(without)}/10 without")
+    assert sum(with_injection) >= 9
+    assert sum(with_injection) > sum(without)

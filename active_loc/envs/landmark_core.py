@@ -47,6 +47,7 @@ from active_loc.sensors.landmarks import (
     RelativePositionSensor,
     measure_landmarks,
 )
+from active_loc.sensors.lidar import LidarSensor
 
 NOISE_BLOCK = 64
 NEED_NOISE = -2
@@ -107,11 +108,12 @@ STATE_SIZE = X_STATS + N_STATS
 
 
 @dataclass(frozen=True)
-class LandmarkModels:
-    """The models a planner may use: motion, sensor and their shared kernel parameters."""
+class EnvModels:
+    """The models of an env: motion, sensor (a landmark sensor or a lidar), the packed kernel
+    parameters, the discrete primitives' controls and the control limits."""
 
     motion: UnicycleModel
-    sensor: LandmarkSensor
+    sensor: LandmarkSensor | LidarSensor
     params: NDArray[np.float64]
     primitives: NDArray[np.float64]
     limits: ControlLimits
@@ -122,7 +124,7 @@ def build_motion(cfg: LocalizationConfig) -> UnicycleModel:
     return UnicycleModel(cfg.dt, np.diag(np.square(cfg.motion_noise_std)))
 
 
-def build_models(cfg: LocalizationConfig) -> LandmarkModels:
+def build_models(cfg: LocalizationConfig) -> EnvModels:
     """Motion and sensor models of a landmark config, and the packed parameter vector of the
     kernels."""
     motion = build_motion(cfg)
@@ -156,7 +158,7 @@ def build_models(cfg: LocalizationConfig) -> LandmarkModels:
     params[P_R : P_R + 4] = sensor.noise_cov.ravel()
     params[P_RROOT : P_RROOT + 4] = sensor.noise_root.ravel()
     limits = ControlLimits(cfg.action_type, cfg.dt, cfg.v_min, cfg.v_max, cfg.omega_max)
-    return LandmarkModels(motion, sensor, params, limits.primitives(), limits)
+    return EnvModels(motion, sensor, params, limits.primitives(), limits)
 
 
 def _map_extent(cfg: LocalizationConfig) -> tuple[float, float]:

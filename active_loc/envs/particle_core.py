@@ -54,7 +54,7 @@ from active_loc.envs.landmark_core import (
     X_MEAN,
     X_POSE,
     X_STATS,
-    LandmarkModels,
+    EnvModels,
     build_models,
     build_motion,
     fixed_landmark_map,
@@ -117,7 +117,7 @@ class ParticleCore:
             )
             params = np.zeros(N_PARAMS)
             params[P_SCALE] = config.max_range
-            self.models = LandmarkModels(
+            self.models = EnvModels(
                 build_motion(config), self.lidar, params, limits.primitives(), limits
             )
         else:

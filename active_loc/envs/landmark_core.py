@@ -387,10 +387,26 @@ def executed_controls(actions: NDArray, params: NDArray, collided: NDArray) -> N
 
 
 # --------------------------------------------------------------------------------------------
-# the holder
+# the holders
 
 
-class LandmarkCore:
+class StateViews:
+    """Named views of the ``state`` array every core keeps (one row per member)."""
+
+    state: NDArray[np.float64]
+
+    @property
+    def pose(self) -> NDArray[np.float64]:
+        """``(B, 3)`` true poses (a view)."""
+        return self.state[:, X_POSE : X_POSE + 3]
+
+    @property
+    def stats(self) -> NDArray[np.float64]:
+        """``(B, N_STATS)`` metrics of the last step (a view)."""
+        return self.state[:, X_STATS : X_STATS + N_STATS]
+
+
+class LandmarkCore(StateViews):
     """State arrays of B landmark-localization episodes and the calls that advance them.
 
     Args:
@@ -438,16 +454,6 @@ class LandmarkCore:
             self._bind_belief()
 
     # -- named views of the packed arrays ------------------------------------------------------
-
-    @property
-    def pose(self) -> NDArray[np.float64]:
-        """``(B, 3)`` true poses (a view)."""
-        return self.state[:, X_POSE : X_POSE + 3]
-
-    @property
-    def stats(self) -> NDArray[np.float64]:
-        """``(B, N_STATS)`` metrics of the last step (a view)."""
-        return self.state[:, X_STATS : X_STATS + N_STATS]
 
     @property
     def landmarks(self) -> NDArray[np.float64]:

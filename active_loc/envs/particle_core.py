@@ -55,6 +55,7 @@ from active_loc.envs.landmark_core import (
     X_POSE,
     X_STATS,
     EnvModels,
+    StateViews,
     build_models,
     build_motion,
     fixed_landmark_map,
@@ -94,7 +95,7 @@ def build_lidar(cfg: LocalizationConfig, simulated: bool = False) -> LidarSensor
     )
 
 
-class ParticleCore:
+class ParticleCore(StateViews):
     """One episode with an MCL belief, on a landmark map or an occupancy grid.
 
     Offers what :class:`active_loc.envs.localization_env.ActiveLocalizationEnv` uses of a core:
@@ -141,18 +142,6 @@ class ParticleCore:
         self.kidnap_step = -1
         self.kidnapped = False  # the kidnapping of this episode has happened
         self._bin_variance = np.diag(np.square(ENTROPY_BINS) / 12.0)
-
-    # -- named views, as the landmark core has them --------------------------------------------
-
-    @property
-    def pose(self) -> NDArray[np.float64]:
-        """``(1, 3)`` true pose (a view)."""
-        return self.state[:, X_POSE : X_POSE + 3]
-
-    @property
-    def stats(self) -> NDArray[np.float64]:
-        """``(1, N_STATS)`` metrics of the last step (a view)."""
-        return self.state[:, X_STATS : X_STATS + N_STATS]
 
     # -- reset ---------------------------------------------------------------------------------
 

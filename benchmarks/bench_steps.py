@@ -22,8 +22,15 @@ import numpy as np
 import active_loc
 
 
-def steps_per_second(env_id: str, steps: int, repeats: int, **kwargs: object) -> float:
-    """Best-of-``repeats`` env steps per second of ``gymnasium.make(env_id, **kwargs)``."""
+def steps_per_second(
+    env_id: str, steps: int, repeats: int, budget_s: float = 5.0, **kwargs: object
+) -> float:
+    """Best-of-``repeats`` env steps per second of ``gymnasium.make(env_id, **kwargs)``.
+
+    Each timing runs ``steps`` steps, or fewer when a slow env would take longer than
+    ``budget_s`` seconds (the count is then set from a short probe), so that particle envs
+    at a few milliseconds a step do not hold the run for minutes.
+    """
     env = gym.make(env_id, **kwargs)
     rng = np.random.default_rng(0)
     space = env.action_space
@@ -32,22 +39,26 @@ def steps_per_second(env_id: str, steps: int, repeats: int, **kwargs: object) ->
     else:
         draws = rng.uniform(space.low, space.high, (steps, *space.shape))
         actions = list(draws.astype(space.dtype))
-    env.reset(seed=0)
-    for action in actions[:1000]:  # warm-up: numba compilation, caches
-        _, _, terminated, truncated, _ = env.step(action)
-        if terminated or truncated:
-            env.reset()
-    best = float("inf")
-    for _ in range(repeats):
-        env.reset(seed=1)
+
+    def run(batch: list) -> float:
         start = time.perf_counter()
-        for action in actions:
+        for action in batch:
             _, _, terminated, truncated, _ = env.step(action)
             if terminated or truncated:
                 env.reset()
-        best = min(best, time.perf_counter() - start)
+        return time.perf_counter() - start
+
+    env.reset(seed=0)
+    probe = min(200, steps)
+    run(actions[:probe])  # warm-up: numba compilation, caches
+    per_step = run(actions[:probe]) / probe
+    count = max(probe, min(steps, int(budget_s / per_step)))
+    best = float("inf")
+    for _ in range(repeats):
+        env.reset(seed=1)
+        best = min(best, run(actions[:count]))
     env.close()
-    return steps / best
+    return count / best
 
 
 def main() -> None:

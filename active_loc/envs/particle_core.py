@@ -138,6 +138,7 @@ class ParticleCore(StateViews):
         self._free: FreeSpace | None = None
         self._grid_arrays: tuple | None = None
         self._distance: NDArray[np.float64] | None = None
+        self._log_table: NDArray[np.float64] | None = None  # likelihood field, per cell
         self.t = 0
         self.kidnap_step = -1
         self.kidnapped = False  # the kidnapping of this episode has happened
@@ -215,6 +216,9 @@ class ParticleCore(StateViews):
             self._free = FreeSpace.from_grid(lmap.values, lmap.resolution, lmap.origin)
             self._grid_arrays = lmap.kernel_arrays()
             self._distance = lmap.distance_field()
+            assert self.lidar is not None
+            if self.lidar.model == "likelihood_field":
+                self._log_table = self.lidar.log_table(self._distance)
             return
         if lmap.n_landmarks > self.config.max_landmarks:
             raise ValueError(
@@ -270,9 +274,12 @@ class ParticleCore(StateViews):
             assert self.lidar is not None and self.true_lidar is not None
             ranges = self.true_lidar.measure(pose, self._grid_arrays, rng)
             self.ranges[0] = ranges
-            log_lik = self.lidar.log_likelihood(
-                ranges, belief.particles, self._grid_arrays, self._distance
-            )
+            if self._log_table is not None:
+                log_lik = self.lidar.field_log_likelihood(
+                    ranges, belief.particles, self._grid_arrays, self._log_table
+                )
+            else:
+                log_lik = self.lidar.log_likelihood(ranges, belief.particles, self._grid_arrays)
             belief.update(log_lik, rng)
         else:
             assert lmap is not None

@@ -411,6 +411,76 @@ def likelihood_field_log_likelihood(
         out[k] = total
 
 
+@numba.njit(cache=True)
+def likelihood_field_log_table(
+    distance_field: NDArray, max_range: float, z_hit: float, z_rand: float, sigma_hit: float
+) -> NDArray:
+    """The per-cell log-probability of a beam end point under the likelihood field,
+    ``log(z_hit N(d; 0, sigma_hit^2) + z_rand / max_range)`` for every cell's distance ``d``:
+    computed once per map (AMCL precomputes its field the same way), it turns the per-beam
+    ``exp`` and ``log`` into one lookup. Shape of ``distance_field`` ``(ny, nx)``."""
+    hit_scale = z_hit / (_SQRT_2PI * sigma_hit)
+    half_inv_var = 0.5 / (sigma_hit * sigma_hit)
+    p_rand = z_rand / max_range
+    out = np.empty(distance_field.shape)
+    for i in range(distance_field.shape[0]):
+        for j in range(distance_field.shape[1]):
+            d = distance_field[i, j]
+            out[i, j] = math.log(max(p_rand + hit_scale * math.exp(-d * d * half_inv_var),
+                                     PROB_FLOOR))
+    return out
+
+
+@numba.njit(cache=True, parallel=_PARALLEL)
+def likelihood_field_table_log_likelihood(
+    z: NDArray,
+    beam_angles: NDArray,
+    poses: NDArray,
+    log_table: NDArray,
+    log_p_off_map: float,
+    resolution: float,
+    ox: float,
+    oy: float,
+    cos_yaw: float,
+    sin_yaw: float,
+    max_range: float,
+    out: NDArray,
+) -> None:
+    """:func:`likelihood_field_log_likelihood` with the per-cell log-probabilities of
+    :func:`likelihood_field_log_table` (same result, one lookup per beam); end points off the
+    map score ``log_p_off_map`` = ``log(z_rand / max_range)``. Shapes as there."""
+    ny, nx = log_table.shape
+    n_beams = z.shape[0]
+    ex = np.empty(n_beams)
+    ey = np.empty(n_beams)
+    n_used = 0
+    threshold = max_range * (1.0 - MAX_READING_TOL)
+    for m in range(n_beams):
+        if z[m] >= threshold:
+            continue
+        r = max(z[m], 0.0)
+        ex[n_used] = r * np.cos(beam_angles[m])
+        ey[n_used] = r * np.sin(beam_angles[m])
+        n_used += 1
+    inv_res = 1.0 / resolution
+    for k in numba.prange(poses.shape[0]):
+        c = np.cos(poses[k, 2])
+        s = np.sin(poses[k, 2])
+        rx0 = poses[k, 0] - ox
+        ry0 = poses[k, 1] - oy
+        total = 0.0
+        for j in range(n_used):
+            rx = rx0 + c * ex[j] - s * ey[j]
+            ry = ry0 + s * ex[j] + c * ey[j]
+            gx = (cos_yaw * rx + sin_yaw * ry) * inv_res
+            gy = (-sin_yaw * rx + cos_yaw * ry) * inv_res
+            if 0.0 <= gx < nx and 0.0 <= gy < ny:
+                total += log_table[int(gy), int(gx)]
+            else:
+                total += log_p_off_map
+        out[k] = total
+
+
 # --------------------------------------------------------------------------- the sensor
 
 
@@ -647,5 +717,30 @@ class LidarSensor:
         likelihood_field_log_likelihood(
             z, self.beam_angles, poses, field, res, ox, oy, c, s, self.max_range, self.z_hit,
             self.z_rand, self.sigma_hit, out,
+        )
+        return out
+
+    def log_table(self, distance_field: ArrayLike) -> NDArray[np.float64]:
+        """The likelihood field's per-cell log-probabilities for this sensor, ``(ny, nx)``:
+        compute once per map and pass to :meth:`field_log_likelihood`."""
+        field = np.ascontiguousarray(distance_field, dtype=np.float64)
+        return likelihood_field_log_table(
+            field, self.max_range, self.z_hit, self.z_rand, self.sigma_hit
+        )
+
+    def field_log_likelihood(
+        self, z: NDArray, poses: NDArray, grid_arrays: GridArrays, log_table: NDArray,
+        out: NDArray | None = None,
+    ) -> NDArray[np.float64]:
+        """The likelihood-field log-likelihood ``(K,)`` of scan ``z`` ``(M,)`` for poses
+        ``(K, 3)`` from a precomputed :meth:`log_table` (the filter's fast path; the same
+        numbers as :meth:`log_likelihood`). Inputs are trusted: the env validated them."""
+        _, res, ox, oy, c, s = grid_arrays
+        if out is None:
+            out = np.empty(poses.shape[0])
+        log_off = math.log(max(self.z_rand / self.max_range, PROB_FLOOR))
+        likelihood_field_table_log_likelihood(
+            z, self.beam_angles, poses, log_table, log_off, res, ox, oy, c, s, self.max_range,
+            out,
         )
         return out

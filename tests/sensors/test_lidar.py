@@ -647,3 +647,20 @@ def test_timing_report(capsys):
             f"\n[lidar timing] 1000 poses x 60 beams, 200x200 grid: cast_rays {t_cast:.2f} ms, "
             f"beam model {t_beam:.2f} ms, likelihood field {t_lf:.2f} ms"
         )
+
+
+def test_the_precomputed_field_table_gives_the_same_log_likelihoods() -> None:
+    from active_loc.maps.generators import rooms_map
+
+    rng = np.random.default_rng(5)
+    grid = rooms_map(rng, size_m=(10.0, 8.0))
+    sensor = LidarSensor(n_beams=30, fov=1.5 * np.pi, max_range=6.0)
+    arrays = grid.kernel_arrays()
+    field = grid.distance_field()
+    poses = np.column_stack([grid.sample_free(rng, 200), rng.uniform(-np.pi, np.pi, 200)])
+    # a few poses off the map too, so end points fall outside it
+    poses[:5, :2] += 50.0
+    z = sensor.measure(poses[10], arrays, rng)
+    direct = sensor.log_likelihood(z, poses, arrays, field)
+    table = sensor.field_log_likelihood(z, poses, arrays, sensor.log_table(field))
+    np.testing.assert_allclose(table, direct, rtol=1e-12, atol=1e-9)

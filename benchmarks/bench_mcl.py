@@ -438,6 +438,8 @@ def run_grid_mcl(problem: GridProblem, lidar: LidarSensor, record: bool = False)
     free = FreeSpace.from_grid(grid.values, grid.resolution, grid.origin)
     arrays = grid.kernel_arrays()
     field = grid.distance_field()
+    # the env's fast path for the likelihood field: per-cell log-probabilities, once per map
+    table = lidar.log_table(field) if lidar.model == "likelihood_field" else None
     belief = MCLBelief(free, problem.motion, N_PARTICLES, resample_threshold=RESAMPLE_THRESHOLD)
     belief.set_particles(problem.initial)
     rng = np.random.default_rng(problem.filter_seed)
@@ -447,7 +449,10 @@ def run_grid_mcl(problem: GridProblem, lidar: LidarSensor, record: bool = False)
     start = time.perf_counter()
     for t in range(steps):
         belief.predict(problem.controls[t], rng)
-        log_lik = lidar.log_likelihood(problem.scans[t], belief.particles, arrays, field)
+        if table is not None:
+            log_lik = lidar.field_log_likelihood(problem.scans[t], belief.particles, arrays, table)
+        else:
+            log_lik = lidar.log_likelihood(problem.scans[t], belief.particles, arrays, field)
         belief.update(log_lik, rng)
         resampled += belief.resampled
         if estimates is not None:

@@ -155,9 +155,11 @@ class ParticleCore(StateViews):
         self.maps[0] = lmap
         row = self.state[0]
         row[:] = 0.0
-        x_min, y_min, x_max, y_max = lmap.bounds
-        row[X_BOX : X_BOX + 4] = x_min, y_min, x_max, y_max
-        row[X_BOX + B_WALLS] = 1.0
+        row[X_BOX : X_BOX + 4] = lmap.bounds
+        # grids block motion by their cells; a landmark map by its border when it has walls
+        row[X_BOX + B_WALLS] = 1.0 if isinstance(lmap, OccupancyGrid) or lmap.walls else 0.0
+        if isinstance(lmap, LandmarkMap):
+            row[X_BOX + B_COUNT] = lmap.n_landmarks
         if cfg.start == "fixed":
             row[X_POSE : X_POSE + 3] = cfg.start_pose
         else:
@@ -228,7 +230,6 @@ class ParticleCore(StateViews):
         self._free = FreeSpace.from_box(*lmap.bounds)
         self.landmarks[:] = 0.0
         self.landmarks[0, : lmap.n_landmarks] = lmap.positions
-        self.state[0, X_BOX + B_COUNT] = lmap.n_landmarks
 
     def _random_free_pose(self, rng: np.random.Generator) -> NDArray[np.float64]:
         """A uniform free pose; on landmark maps 1 m (at most a quarter) away from the border."""
@@ -302,7 +303,8 @@ class ParticleCore(StateViews):
         lmap = self.maps[0]
         if not isinstance(lmap, OccupancyGrid):
             box = self.state[0, X_BOX : X_BOX + 4]
-            return bool(move_within_bounds(pose, v, omega, self.config.dt, noise, box, True))
+            walls = bool(self.state[0, X_BOX + B_WALLS] > 0.5)
+            return bool(move_within_bounds(pose, v, omega, self.config.dt, noise, box, walls))
         dt = self.config.dt
         dx = v * np.cos(pose[2]) * dt + noise[0]
         dy = v * np.sin(pose[2]) * dt + noise[1]

@@ -334,7 +334,7 @@ def beam_model_log_likelihood(
 # --------------------------------------------------------------------------- likelihood field
 
 
-@numba.njit(cache=True, parallel=_PARALLEL)
+@numba.njit(cache=True)
 def likelihood_field_log_likelihood(
     z: NDArray,
     beam_angles: NDArray,
@@ -370,45 +370,16 @@ def likelihood_field_log_likelihood(
         max_range: the sensor's maximum range (m).
         z_hit, z_rand, sigma_hit: the model's weights and hit standard deviation (m).
         out: ``(K,)`` out: ``sum_m log p_m`` (nats), always finite.
+
+    It scores through the per-cell table of :func:`likelihood_field_log_table`, built here for
+    the whole grid; a filter that weighs many scans on one map builds it once instead.
     """
-    ny, nx = distance_field.shape
-    n_beams = z.shape[0]
-    # the end points in the sensor frame are the same for every particle: compute them once
-    # and rotate per particle, instead of a sin/cos per particle and beam
-    used = np.empty(n_beams, dtype=np.int64)
-    ex = np.empty(n_beams)
-    ey = np.empty(n_beams)
-    n_used = 0
-    threshold = max_range * (1.0 - MAX_READING_TOL)
-    for m in range(n_beams):
-        if z[m] >= threshold:
-            continue
-        r = max(z[m], 0.0)
-        used[n_used] = m
-        ex[n_used] = r * np.cos(beam_angles[m])
-        ey[n_used] = r * np.sin(beam_angles[m])
-        n_used += 1
-    hit_scale = z_hit / (_SQRT_2PI * sigma_hit)
-    half_inv_var = 0.5 / (sigma_hit * sigma_hit)
-    p_rand = z_rand / max_range
-    inv_res = 1.0 / resolution
-    for k in numba.prange(poses.shape[0]):
-        c = np.cos(poses[k, 2])
-        s = np.sin(poses[k, 2])
-        rx0 = poses[k, 0] - ox
-        ry0 = poses[k, 1] - oy
-        total = 0.0
-        for j in range(n_used):
-            rx = rx0 + c * ex[j] - s * ey[j]
-            ry = ry0 + s * ex[j] + c * ey[j]
-            gx = (cos_yaw * rx + sin_yaw * ry) * inv_res
-            gy = (-sin_yaw * rx + cos_yaw * ry) * inv_res
-            p = p_rand
-            if 0.0 <= gx < nx and 0.0 <= gy < ny:
-                d = distance_field[int(gy), int(gx)]
-                p += hit_scale * math.exp(-d * d * half_inv_var)
-            total += math.log(max(p, PROB_FLOOR))
-        out[k] = total
+    table = likelihood_field_log_table(distance_field, max_range, z_hit, z_rand, sigma_hit)
+    log_off_map = math.log(max(z_rand / max_range, PROB_FLOOR))
+    likelihood_field_table_log_likelihood(
+        z, beam_angles, poses, table, log_off_map, resolution, ox, oy, cos_yaw, sin_yaw,
+        max_range, out,
+    )
 
 
 @numba.njit(cache=True)
@@ -451,6 +422,8 @@ def likelihood_field_table_log_likelihood(
     map score ``log_p_off_map`` = ``log(z_rand / max_range)``. Shapes as there."""
     ny, nx = log_table.shape
     n_beams = z.shape[0]
+    # the end points in the sensor frame are the same for every particle: compute them once
+    # and rotate per particle, instead of a sin/cos per particle and beam
     ex = np.empty(n_beams)
     ey = np.empty(n_beams)
     n_used = 0

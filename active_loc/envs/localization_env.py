@@ -47,15 +47,17 @@ _KIDNAPPED = X_STATS + S_KIDNAPPED
 
 
 class ActiveLocalizationEnv(gym.Env):
-    """Active localization in a landmark map with an EKF belief.
+    """Active localization in a known map, with an EKF or a Monte Carlo belief.
 
     ## Description
 
-    A unicycle robot moves with noisy controls in a map of point landmarks it knows. It does
-    not know its own pose exactly: the env keeps its belief with an EKF (the chapter's
-    Algorithm 2) fed by the robot's own sensor, and rewards the agent for information gain, the
-    drop in the belief's entropy. The sensor sees only landmarks inside its field of view and
-    range, so the actions decide what the robot learns.
+    A unicycle robot moves with noisy controls in a map it knows: point landmarks, or an
+    occupancy grid seen through a lidar. It does not know its own pose exactly: the env keeps
+    its belief with a real filter fed by the robot's own sensor (``belief="ekf"``, the
+    chapter's Algorithm 2, on landmark maps; ``belief="mcl"``, Algorithm 4, on landmark maps or
+    grids) and rewards the agent for information gain, the drop in the belief's entropy. The
+    sensor sees only what is inside its field of view and range, so the actions decide what the
+    robot learns.
 
     ## Action Space
 
@@ -73,10 +75,13 @@ class ActiveLocalizationEnv(gym.Env):
 
     ## Observation Space
 
-    ``observation="belief"``: ``Box(-1, 1, (11 + 6 * max_landmarks,), float32)``: the belief
-    mean, heading, log standard deviations, correlations and entropy, then per landmark slot its
-    position relative to the belief mean and this step's measurement with a visibility flag
-    (layout in :mod:`active_loc.envs.observations`). Built from the belief only.
+    ``observation="belief"``: ``Box(-1, 1, (D,), float32)``: the belief mean, heading, log
+    standard deviations, correlations and entropy, then per landmark slot its position relative
+    to the belief mean and this step's measurement with a visibility flag (layout in
+    :mod:`active_loc.envs.observations`; D = 11 + 6 max_landmarks for the EKF). A particle
+    belief adds an 8 x 8 histogram of its mass over the map, and on grids the scan is the lidar
+    ranges / max_range (:mod:`active_loc.envs.particle_core`). Built from the belief and the
+    sensor, never from the true pose.
 
     ## Rewards
 
@@ -86,23 +91,27 @@ class ActiveLocalizationEnv(gym.Env):
 
     ## Starting State
 
-    Random map (or the scenario's), true pose uniform in the map with any heading (or fixed),
-    belief mean = true pose + N(0, diag(initial_error_std^2)), covariance
-    diag(initial_belief_std^2). No measurement has been taken at reset.
+    Random map (or the scenario's), true pose uniform in the free space with any heading (or
+    fixed). ``initial_belief="gaussian"``: mean = true pose + N(0, diag(initial_error_std^2)),
+    covariance diag(initial_belief_std^2); ``"uniform"`` (MCL): the whole free space. No
+    measurement has been taken at reset. With ``kidnap=True`` the robot is moved once, unseen
+    by the filter, at a step drawn in ``kidnap_window`` x ``horizon``.
 
     ## Episode End
 
     Terminated when the belief is confident (largest position std below
-    ``localized_position_std`` and heading std below ``localized_heading_std``) unless
-    ``terminate_when_localized=False``; truncated by ``max_episode_steps`` of the registration.
+    ``localized_position_std`` and heading std below ``localized_heading_std``, and no
+    kidnapping still ahead) unless ``terminate_when_localized=False``; truncated by
+    ``max_episode_steps`` of the registration.
 
     ## Info
 
     Every step: ``pose_error`` (m), ``heading_error`` (rad), ``entropy`` (nats),
     ``localized`` (confident), ``is_success`` (confident and within ``success_position_tol``
     and ``success_heading_tol`` of the truth), ``collisions`` (this episode so far),
-    ``reward_terms``, ``n_visible``, ``nis`` (normalized innovation squared of the update).
-    Errors use the true pose: they are for evaluation, never seen by the agent.
+    ``reward_terms``, ``n_visible``, ``nis`` (normalized innovation squared of the EKF update),
+    ``kidnapped`` (the robot was kidnapped this step). Errors use the true pose: they are for
+    evaluation, never seen by the agent; with a kidnapping, success also needs it to be past.
 
     ## Arguments
 

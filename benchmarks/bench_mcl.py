@@ -51,7 +51,7 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numba
 import numpy as np
-from bench_steps import steps_per_second
+from bench_steps import random_actions, steps_per_second
 from numpy.typing import NDArray
 
 import active_loc
@@ -503,13 +503,7 @@ def env_steps_per_second(
     after each step and the number of episode ends, from an untimed first pass over the same
     seed and actions (which also warms up)."""
     env = gym.make(env_id)
-    rng = np.random.default_rng(0)
-    space = env.action_space
-    if isinstance(space, gym.spaces.Discrete):
-        actions = list(rng.integers(space.n, size=steps).tolist())
-    else:
-        draws = rng.uniform(space.low, space.high, (steps, *space.shape))
-        actions = list(draws.astype(space.dtype))
+    actions = random_actions(env.action_space, steps)
     core = env.unwrapped.core  # type: ignore[attr-defined]
 
     counts = np.empty(steps, dtype=np.int64)

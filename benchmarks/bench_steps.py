@@ -22,6 +22,16 @@ import numpy as np
 import active_loc
 
 
+def random_actions(space: gym.Space, steps: int, seed: int = 0) -> list:
+    """``steps`` actions of ``space`` drawn up front from a seeded Generator, so that sampling
+    is not part of any timing."""
+    rng = np.random.default_rng(seed)
+    if isinstance(space, gym.spaces.Discrete):
+        return list(rng.integers(space.n, size=steps).tolist())
+    draws = rng.uniform(space.low, space.high, (steps, *space.shape))
+    return list(draws.astype(space.dtype))
+
+
 def steps_per_second(
     env_id: str, steps: int, repeats: int, budget_s: float = 5.0, **kwargs: object
 ) -> float:
@@ -32,13 +42,7 @@ def steps_per_second(
     at a few milliseconds a step do not hold the run for minutes.
     """
     env = gym.make(env_id, **kwargs)
-    rng = np.random.default_rng(0)
-    space = env.action_space
-    if isinstance(space, gym.spaces.Discrete):
-        actions = list(rng.integers(space.n, size=steps).tolist())
-    else:
-        draws = rng.uniform(space.low, space.high, (steps, *space.shape))
-        actions = list(draws.astype(space.dtype))
+    actions = random_actions(env.action_space, steps)
 
     def run(batch: list) -> float:
         start = time.perf_counter()

@@ -29,6 +29,7 @@ from active_loc.envs.landmark_core import (
 )
 from active_loc.envs.particle_core import ParticleCore
 from active_loc.envs.planner_view import PlannerView
+from active_loc.envs.rewards import reward_terms
 from active_loc.maps import OccupancyGrid
 from active_loc.scenarios import scenario_kwargs
 
@@ -288,11 +289,9 @@ class ActiveLocalizationEnv(gym.Env):
             "localized": row[_LOCALIZED] > 0.5,
             "is_success": row[_SUCCESS] > 0.5,
             "collisions": self._collisions,
-            "reward_terms": {
-                self._reward_name: uncertainty,
-                "step_cost": -self._step_cost,
-                "collision": -self._collision_penalty if collided else 0.0,
-            },
+            "reward_terms": reward_terms(
+                self._reward_name, uncertainty, collided, self._step_cost, self._collision_penalty
+            ),
             "n_visible": int(row[_N_VISIBLE]),
             "nis": row[_NIS],
             "kidnapped": row[_KIDNAPPED] > 0.5,

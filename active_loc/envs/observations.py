@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from gymnasium import spaces
 from numpy.typing import NDArray
 
 from active_loc.sensors.landmarks import RANGE_BEARING
@@ -38,12 +37,6 @@ ENTROPY_SCALE = 10.0
 def belief_observation_size(max_landmarks: int) -> int:
     """Length of the ``"belief"`` observation vector."""
     return BELIEF_HEADER + SLOT_SIZE * max_landmarks
-
-
-def belief_observation_space(max_landmarks: int) -> spaces.Box:
-    """``Box(-1, 1, (11 + 6 N,), float32)``."""
-    n = belief_observation_size(max_landmarks)
-    return spaces.Box(-1.0, 1.0, (n,), dtype=np.float32)
 
 
 @numba.njit(cache=True, inline="always")

@@ -755,7 +755,10 @@ class MCLBelief:
 
     Attributes:
         reinitialized: True when a total collapse re-initialized the belief since the start of
-            the last :meth:`predict` (all particles in walls, or every weight zero).
+            the last :meth:`predict` (every weight zero after an update, or an initial
+            Gaussian entirely outside the free space).
+        blocked: True when the last :meth:`predict` would have moved every particle out of the
+            free space, and so moved none.
         n_reinitializations: how many re-initializations in all.
         resampled: whether the last :meth:`update` resampled.
         last_injected: particles injected by the last update (0 if it did not resample).
@@ -834,6 +837,7 @@ class MCLBelief:
         self._initialized = False
         self.reinitialized = False
         self.n_reinitializations = 0
+        self.blocked = False
         self.resampled = False
         self.last_injected = 0
         self.last_injection_rate = 0.0
@@ -991,7 +995,7 @@ class MCLBelief:
         """Motion update with control ``(2,)`` = (V m/s, omega rad/s) and the map prior.
 
         Draws ``3 K_max`` normals. Particles that land outside the free space get weight 0;
-        if all do, the belief is re-initialized uniformly (``reinitialized`` is set).
+        if all would, every particle keeps its pre-move pose and weight (``blocked`` is set).
         """
         self._check_initialized()
         u = np.asarray(control, dtype=np.float64).reshape(-1)
@@ -1000,9 +1004,22 @@ class MCLBelief:
                              f"omega rad/s), got {control}")
         self.reinitialized = False
         normals = rng.standard_normal((1, self.n_particles, 3))
+        n = self.n_active
+        before = self._particles[0, :n].copy()
+        before_log_w = self._log_weights[0, :n].copy()
         sample_motion(self._particles, self._counts, u.reshape(1, 2), self.motion.dt, normals,
                       self.motion.noise_root)
-        self._apply_map(rng)
+        fs = self.free_space
+        mask_free_space(self._particles, self._log_weights, self._counts, fs.values, fs.geom,
+                        fs.is_grid)
+        self.blocked = normalize_log_weights(self._log_weights[0, :n]) == -math.inf
+        if self.blocked:
+            # Every hypothesis says this move runs into a wall: read it as blocked under all of
+            # them, as the robot itself would be, and let the scans judge. Re-initializing here
+            # would throw a whole tracked belief away on one step (and would act as a second,
+            # unconfigured kidnapping recovery beside augmented MCL).
+            self._particles[0, :n] = before
+            self._log_weights[0, :n] = before_log_w
 
     def update(self, log_likelihood: ArrayLike, rng: np.random.Generator) -> None:
         """Measurement update with per-particle log-likelihoods ``(K,)`` (K = :attr:`n_active`,

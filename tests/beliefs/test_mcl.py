@@ -690,20 +690,35 @@ def test_all_minus_inf_likelihoods_reinitialize():
     assert not b.reinitialized  # the flag is per step
 
 
-def test_all_particles_in_walls_reinitialize():
+def test_a_move_that_puts_every_particle_in_a_wall_is_read_as_blocked():
     values = np.zeros((4, 8), dtype=np.int8)
     values[:, 4:] = OCCUPIED
     fs = FreeSpace.from_grid(values, 0.5, (0.0, 0.0, 0.0))
     b = MCLBelief(fs, UnicycleModel(0.1, 1e-6 * np.eye(3)), 200)
     b.initialize_gaussian([1.8, 1.0, 0.0], np.diag([0.01, 0.1, 0.0]) ** 2,
                           np.random.default_rng(25))
-    assert not b.reinitialized
+    before, before_w = b.particles.copy(), b.log_weights.copy()
     b.predict([10.0, 0.0], np.random.default_rng(26))  # 1 m east: every particle in the wall
-    assert b.reinitialized
-    assert fs.is_free(b.particles).all()
-    assert np.all(b.particles[:, 0] < 2.0)
+    assert b.blocked and not b.reinitialized
+    np.testing.assert_array_equal(b.particles, before)
+    np.testing.assert_array_equal(b.log_weights, before_w)
     assert np.all(np.isfinite(b.log_weights))
     assert not np.any(np.isnan(b.mean()))
+    b.predict([-1.0, 0.0], np.random.default_rng(27))  # 0.1 m west: free again
+    assert not b.blocked
+    assert np.all(b.particles[:, 0] < before[:, 0])
+
+
+def test_an_initial_gaussian_inside_a_wall_reinitializes():
+    values = np.zeros((4, 8), dtype=np.int8)
+    values[:, 4:] = OCCUPIED
+    fs = FreeSpace.from_grid(values, 0.5, (0.0, 0.0, 0.0))
+    b = MCLBelief(fs, UnicycleModel(0.1, 1e-6 * np.eye(3)), 200)
+    b.initialize_gaussian([3.0, 1.0, 0.0], np.diag([0.01, 0.01, 0.01]) ** 2,
+                          np.random.default_rng(25))
+    assert b.reinitialized
+    assert fs.is_free(b.particles).all()
+    assert np.all(np.isfinite(b.log_weights))
 
 
 def test_some_particles_in_walls_lose_their_weight():

@@ -71,6 +71,24 @@ def test_passive_wanderer_localizes_globally_on_landmark_maps() -> None:
     assert successes >= 95
 
 
+def test_passive_wanderer_localizes_globally_on_grid_maps() -> None:
+    """The wall-avoiding wanderer (passive: it reads the scan, never the belief) on 100 seeded
+    generated office maps, belief uniform over the free space at the start: the episode ends
+    on confidence, and the confident belief is right in at least 95 of them."""
+    env = gym.make("ActiveLoc/GridMCL-v0", action_type="discrete")
+    successes, lengths = 0, []
+    for seed in range(100):
+        obs, info = env.reset(seed=seed)
+        terminated = truncated = False
+        while not (terminated or truncated):
+            obs, _, terminated, truncated, info = env.step(wander(obs))
+        successes += info["is_success"]
+        lengths.append(env.unwrapped.core.t)
+    print(f"GridMCL-v0 passive wanderer: {successes}/100 localized, mean episode "
+          f"{np.mean(lengths):.1f} steps")
+    assert successes >= 95
+
+
 def test_symmetric_arena_leaves_passive_localization_ambiguous() -> None:
     """In the pillar arena, equal to its own 180-degree rotation, the wanderer's belief settles
     as often on the mirrored pose as on the true one: no passive strategy can tell them apart."""
@@ -166,12 +184,11 @@ def kidnapped_recoveries(augmented: bool, seeds: range) -> list[bool]:
 
 def test_injection_brings_the_kidnapped_robot_back() -> None:
     """With random-particle injection the filter re-localizes after the kidnapping in 9 of 10
-    episodes, and more often than without it. (Without injection the filter still recovers
-    sometimes: when every particle runs into a wall the belief collapses and re-initializes.)"""
+    episodes; without it, in at most 3: nothing else brings particles to the new pose."""
     seeds = range(10)
     with_injection = kidnapped_recoveries(True, seeds)
     without = kidnapped_recoveries(False, seeds)
     print(f"GridMCLKidnapped-v0: re-localized {sum(with_injection)}/10 with injection, "
           f"{sum(without)}/10 without")
     assert sum(with_injection) >= 9
-    assert sum(with_injection) > sum(without)
+    assert sum(without) <= 3

@@ -57,7 +57,7 @@ LANDMARK_GLOBAL: MappingProxyType[str, Any] = MappingProxyType(
 
 #: Global localization on generated office-like grid maps (12 m x 12 m) with a 270-degree,
 #: 60-beam lidar of 8 m and the likelihood field; as in AMCL, the particle count adapts by KLD
-#: sampling (10000 down to 500), random particles are injected, and the scan likelihood is
+#: sampling (50000 down to 500), random particles are injected, and the scan likelihood is
 #: tempered (beams are not independent). The recovery averages run faster than AMCL's
 #: defaults (0.001, 0.1), which are sized for hours of operation, not episodes of 300 steps.
 GRID_GLOBAL: MappingProxyType[str, Any] = MappingProxyType(

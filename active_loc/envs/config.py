@@ -71,6 +71,9 @@ class LocalizationConfig:
     # and the filter's model (the likelihood field uses hit and random only)
     lidar_mixture: tuple[float, float, float, float] = (0.9, 0.04, 0.03, 0.03)
     lidar_lambda_short: float = 0.1  # rate of the short-reading exponential (1/m)
+    # beam model: directions of a range table precomputed once per map (RangeTable; ~30x
+    # faster steps for ~1 s per new map); 0 ray-casts every particle's beams at every step
+    lidar_range_bins: int = 0
     unknown_reflects: bool = True  # whether unknown grid cells stop lidar beams
 
     # --- belief --------------------------------------------------------------------------
@@ -197,6 +200,10 @@ class LocalizationConfig:
         _positive("lidar_sigma_hit", self.lidar_sigma_hit)
         _positive("lidar_noise_std", self.lidar_noise_std)
         _positive("lidar_lambda_short", self.lidar_lambda_short)
+        _integer("lidar_range_bins", self.lidar_range_bins, 0)
+        if 0 < self.lidar_range_bins < 4:
+            raise ValueError(f"lidar_range_bins must be 0 (off) or >= 4, got "
+                             f"{self.lidar_range_bins}")
         _positive("dt", self.dt)
         _positive("v_max", self.v_max, allow_zero=True)
         if not (math.isfinite(self.v_min) and self.v_min <= self.v_max):

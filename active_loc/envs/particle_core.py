@@ -72,6 +72,7 @@ from active_loc.maps import LandmarkMap, OccupancyGrid, random_landmark_map
 from active_loc.maps.generators import GENERATORS
 from active_loc.motion import move_within_bounds
 from active_loc.sensors.lidar import LidarSensor, cast_ray
+from active_loc.sensors.range_table import RangeTable
 
 HISTOGRAM_CELLS = 8
 
@@ -139,6 +140,7 @@ class ParticleCore(StateViews):
         self._grid_arrays: tuple | None = None
         self._distance: NDArray[np.float64] | None = None
         self._log_table: NDArray[np.float64] | None = None  # likelihood field, per cell
+        self._range_table: RangeTable | None = None  # beam model, precomputed casts
         self.t = 0
         self.kidnap_step = -1
         self.kidnapped = False  # the kidnapping of this episode has happened
@@ -221,6 +223,9 @@ class ParticleCore(StateViews):
             assert self.lidar is not None
             if self.lidar.model == "likelihood_field":
                 self._log_table = self.lidar.log_table(self._distance)
+            elif self.config.lidar_range_bins:
+                self._range_table = RangeTable.build(self.lidar, self._grid_arrays,
+                                                     n_angles=self.config.lidar_range_bins)
             return
         if lmap.n_landmarks > self.config.max_landmarks:
             raise ValueError(
@@ -279,6 +284,8 @@ class ParticleCore(StateViews):
                 log_lik = self.lidar.field_log_likelihood(
                     ranges, belief.particles, self._grid_arrays, self._log_table
                 )
+            elif self._range_table is not None:
+                log_lik = self._range_table.log_likelihood(ranges, belief.particles)
             else:
                 log_lik = self.lidar.log_likelihood(ranges, belief.particles, self._grid_arrays)
             belief.update(log_lik, rng)

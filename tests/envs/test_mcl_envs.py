@@ -14,6 +14,7 @@ from active_loc.agents import TextbookAgent
 from active_loc.beliefs.particle_stats import ENTROPY_BINS
 from active_loc.envs.landmark_core import S_LOGDET, S_TRACE, X_COV, X_MEAN
 from active_loc.geometry import wrap_angle
+from active_loc.maps import rooms_map
 
 SHARED_MAPS = Path(__file__).resolve().parents[3] / "shared" / "maps"
 BEAMS = 60
@@ -192,3 +193,28 @@ def test_injection_brings_the_kidnapped_robot_back() -> None:
           f"{sum(without)}/10 without")
     assert sum(with_injection) >= 9
     assert sum(without) <= 3
+
+
+def test_the_beam_model_from_a_range_table_localizes_like_ray_casting() -> None:
+    """Pose tracking on one ROS-sized generated map with the beam model, ray-cast every step
+    or looked up in the precomputed table: both stay on the robot."""
+    grid = rooms_map(np.random.default_rng(5), size_m=(10.0, 10.0), resolution=0.1)
+    errors = {}
+    for bins in (0, 360):
+        env = gym.make(
+            "ActiveLoc/GridMCLKidnapped-v0", map=grid, kidnap=False, lidar_model="beam",
+            lidar_range_bins=bins, n_particles=500, kld=False, augmented=False,
+            action_type="discrete", terminate_when_localized=False,
+        )
+        final = []
+        for seed in range(3):
+            obs, info = env.reset(seed=seed)
+            for _ in range(40):
+                obs, *_, info = env.step(wander(obs))
+            final.append(info["pose_error"])
+        errors[bins] = final
+        if bins:
+            assert env.unwrapped.core._range_table.n_angles == bins
+    print(f"beam model, final position errors (m): ray casting {errors[0]}, table "
+          f"{errors[360]}")
+    assert max(errors[0]) < 0.3 and max(errors[360]) < 0.3

@@ -3,6 +3,7 @@ IO) and the generators of random occupancy maps."""
 
 from active_loc.maps.generators import GENERATORS, maze_map, rooms_map, symmetric_arena
 from active_loc.maps.landmarks import LandmarkMap, random_landmark_map
+from active_loc.maps.maze import MazeSet, maze_test_set
 from active_loc.maps.occupancy import (
     FREE,
     OCCUPIED,
@@ -24,9 +25,11 @@ __all__ = [
     "LandmarkMap",
     "MapFileError",
     "MapFileNotFoundError",
+    "MazeSet",
     "OccupancyGrid",
     "cell_value",
     "maze_map",
+    "maze_test_set",
     "random_landmark_map",
     "rooms_map",
     "symmetric_arena",

@@ -26,6 +26,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+# the maze benchmark's fixed test sets (active_loc.maps.maze), re-exported
+from active_loc.maps.maze import maze_test_set  # noqa: F401
 from active_loc.maps.occupancy import FREE, OCCUPIED, OccupancyGrid
 
 IntRange = int | tuple[int, int]

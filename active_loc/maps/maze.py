@@ -1,0 +1,302 @@
+"""Mazes of the Active Neural Localization benchmark (Chaplot, Parisotto, Salakhutdinov, ICLR
+2018), carved by Eller's algorithm as in the paper's released code.
+
+Layout. An ``n x n`` maze (``n`` odd, >= 5) is a boolean array ``walls[iy, ix]`` (True = wall),
+row ``iy = 0`` at the *bottom*, exactly like :attr:`OccupancyGrid.values
+<active_loc.maps.occupancy.OccupancyGrid.values>` (one maze cell = one 1 m grid cell). Its
+``m x m`` Eller cells (``m = (n - 1) // 2``) are the cells with odd ``ix`` and ``iy``; the even
+rows and columns hold the border and the walls between Eller cells, and a passage is an even
+cell opened between two Eller cells. Every maze is *perfect*: its ``m^2`` Eller cells are joined
+by exactly ``m^2 - 1`` passages, so there is one path between any two free cells.
+
+Eller's algorithm carves the rows from the top (``iy = n - 2``) down:
+
+1. In every row but the last, each pair of horizontal neighbours in different sets is joined
+   (the wall between them opened, the sets merged) with probability ``p_join = 2/3``.
+2. Then each cell opens the wall below it with probability ``p_down = 1/3``, except that a set
+   whose cells have all declined so far must open it at its rightmost cell (so every set
+   continues into the next row). Cells without a passage below start new sets.
+3. In the last row, neighbours in different sets are joined with probability ``p_join``, and
+   always when the left one is the rightmost cell of its set in the row, which connects all
+   sets.
+
+All randomness is drawn up front: ``m (m - 1)`` uniforms for the joins and ``(m - 1) m`` for
+the passages down, per maze, from the Generator passed in, then carved by a numba kernel.
+
+Training mazes exclude mazes that equal their own 90- or 180-degree rotation (on those the
+pose can never be told apart from its rotated twin). :func:`maze_test_set` gives the fixed,
+reproducible evaluation set: ``count`` distinct (maze, start pose) pairs, symmetric mazes
+excluded, as the paper's test data (1000 per size).
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from active_loc.maps.occupancy import FREE, OCCUPIED, OccupancyGrid
+
+#: probability that two neighbours of different sets in a row are joined (the paper's 2/3)
+P_JOIN = 2.0 / 3.0
+#: probability that a cell opens the wall below it when its set does not need it (the paper's
+#: code keeps the wall with probability 2/3)
+P_DOWN = 1.0 / 3.0
+#: the seed of the standard test sets (what :class:`~active_loc.envs.maze_env.MazeEnv` replays
+#: when given a maze index or a test-set size)
+TEST_SET_SEED = 2018
+#: heading h -> unit step (dx, dy) in cells: 0 east (+x), 1 north (+y), 2 west, 3 south;
+#: turning left is h + 1 (mod 4)
+HEADING_STEPS = np.array([[1, 0], [0, 1], [-1, 0], [0, -1]], dtype=np.int64)
+HEADING_STEPS.setflags(write=False)
+
+_MAX_ATTEMPTS_PER_MAZE = 200
+
+
+@numba.njit(cache=True)
+def _same_set_right(labels: NDArray, i: int) -> bool:
+    """Whether a cell right of ``i`` in the row shares its set."""
+    for k in range(i + 1, labels.shape[0]):
+        if labels[k] == labels[i]:
+            return True
+    return False
+
+
+@numba.njit(cache=True)
+def _merge(labels: NDArray, keep: int, drop: int) -> None:
+    for k in range(labels.shape[0]):
+        if labels[k] == drop:
+            labels[k] = keep
+
+
+@numba.njit(cache=True)
+def eller_carve(
+    u_join: NDArray, u_down: NDArray, p_join: float, p_down: float, walls: NDArray
+) -> None:
+    """Carve a maze into ``walls`` ``(n, n)`` bool (all True on entry), rows top to bottom.
+
+    Args:
+        u_join: ``(m, m - 1)`` uniforms in [0, 1): the join decisions, row by row.
+        u_down: ``(m - 1, m)`` uniforms: the passage-down decisions of every row but the last.
+        p_join, p_down: the probabilities of an optional join and an optional passage down.
+        walls: ``(n, n)`` bool, ``n = 2 m + 1``, row 0 at the bottom; written in place.
+    """
+    m = u_join.shape[0]
+    n = walls.shape[0]
+    for r in range(m):
+        for i in range(m):
+            walls[n - 2 - 2 * r, 2 * i + 1] = False
+    labels = np.arange(m)
+    down = np.zeros(m, dtype=np.bool_)
+    fresh = m
+    for r in range(m):
+        iy = n - 2 - 2 * r  # array row of Eller row r (row 0 is the top of the maze)
+        last = r == m - 1
+        for i in range(m - 1):
+            if labels[i] == labels[i + 1]:
+                continue
+            if last:
+                join = (not _same_set_right(labels, i)) or u_join[r, i] < p_join
+            else:
+                join = u_join[r, i] < p_join
+            if join:
+                walls[iy, 2 * i + 2] = False
+                _merge(labels, labels[i], labels[i + 1])
+        if last:
+            break
+        for i in range(m):
+            other = _same_set_right(labels, i)
+            for k in range(i):
+                if down[k] and labels[k] == labels[i]:
+                    other = True
+            down[i] = (not other) or u_down[r, i] < p_down
+            if down[i]:
+                walls[iy - 1, 2 * i + 1] = False
+        for i in range(m):
+            if not down[i]:
+                labels[i] = fresh
+                fresh += 1
+
+
+def _check_size(n: int, where: str) -> int:
+    if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)):
+        raise ValueError(f"{where}: n must be an odd integer >= 5, got {n!r}")
+    n = int(n)
+    if n < 5 or n % 2 == 0:
+        raise ValueError(f"{where}: n must be an odd integer >= 5, got {n}")
+    return n
+
+
+def eller_maze(
+    n: int, rng: np.random.Generator, p_join: float = P_JOIN, p_down: float = P_DOWN
+) -> NDArray[np.bool_]:
+    """One ``n x n`` Eller maze: ``(n, n)`` bool, True = wall, ``walls[iy, ix]``, row 0 at the
+    bottom, with a wall border. Draws ``2 m (m - 1)`` uniforms from ``rng``.
+
+    Raises:
+        ValueError: ``n`` is not an odd integer >= 5, or a probability is outside [0, 1].
+    """
+    n = _check_size(n, "eller_maze")
+    for name, p in (("p_join", p_join), ("p_down", p_down)):
+        if not 0.0 <= float(p) <= 1.0:
+            raise ValueError(f"eller_maze: {name} must be in [0, 1], got {p}")
+    m = (n - 1) // 2
+    u_join = rng.random((m, m - 1))
+    u_down = rng.random((m - 1, m))
+    walls = np.ones((n, n), dtype=np.bool_)
+    eller_carve(u_join, u_down, float(p_join), float(p_down), walls)
+    return walls
+
+
+def is_rotation_symmetric(walls: ArrayLike) -> bool:
+    """Whether a square maze equals its own 90- or 180-degree rotation (then 270 too)."""
+    walls = np.asarray(walls)
+    if walls.ndim != 2 or walls.shape[0] != walls.shape[1]:
+        raise ValueError(f"is_rotation_symmetric: walls must be square (n, n), got {walls.shape}")
+    # w[::-1, ::-1] is the 180-degree rotation, w.T[::-1] the 90-degree one (np.rot90)
+    return bool((walls == walls[::-1, ::-1]).all() or (walls == walls.T[::-1]).all())
+
+
+def random_maze(n: int, rng: np.random.Generator) -> NDArray[np.bool_]:
+    """An Eller maze that is not rotation-symmetric (symmetric draws are redrawn): a training
+    maze. ``(n, n)`` bool, True = wall, row 0 at the bottom."""
+    for _ in range(_MAX_ATTEMPTS_PER_MAZE):
+        walls = eller_maze(n, rng)
+        if not is_rotation_symmetric(walls):
+            return walls
+    raise RuntimeError(
+        f"random_maze: no asymmetric {n} x {n} maze in {_MAX_ATTEMPTS_PER_MAZE} draws"
+    )
+
+
+def random_start(walls: NDArray[np.bool_], rng: np.random.Generator) -> NDArray[np.int64]:
+    """A start pose ``(3,)`` int64 ``(ix, iy, heading)``: a free cell uniformly, then one of the
+    4 headings uniformly (two draws from ``rng``)."""
+    iy, ix = np.nonzero(~walls)
+    k = int(rng.integers(ix.shape[0]))
+    heading = int(rng.integers(4))
+    return np.array([ix[k], iy[k], heading], dtype=np.int64)
+
+
+def maze_to_grid(walls: ArrayLike) -> OccupancyGrid:
+    """The maze as an :class:`OccupancyGrid` (walls OCCUPIED, the rest FREE), resolution 1 m,
+    origin ``(0, 0, 0)``: maze cell ``(ix, iy)`` spans ``[ix, ix + 1) x [iy, iy + 1)`` m."""
+    walls = np.asarray(walls, dtype=bool)
+    return OccupancyGrid(np.where(walls, OCCUPIED, FREE).astype(np.int8), 1.0)
+
+
+@dataclass(frozen=True, eq=False)
+class MazeSet:
+    """A fixed list of (maze, start pose) pairs, to replay episodes exactly.
+
+    Attributes:
+        walls: ``(count, n, n)`` bool, True = wall, ``walls[k, iy, ix]`` with row 0 at the
+            bottom. Stored read-only.
+        starts: ``(count, 3)`` int64 ``(ix, iy, heading)`` start poses, each on a free cell,
+            heading in 0..3 (0 east, 1 north, 2 west, 3 south). Stored read-only.
+        seed: the seed it was generated from (information only; ``None`` if built by hand).
+    """
+
+    walls: NDArray[np.bool_]
+    starts: NDArray[np.int64]
+    seed: int | None = None
+
+    def __post_init__(self) -> None:
+        walls = np.array(self.walls, dtype=bool)
+        starts = np.array(self.starts)
+        if walls.ndim != 3 or walls.shape[1] != walls.shape[2] or walls.shape[0] < 1:
+            raise ValueError(
+                f"MazeSet.walls must have shape (count >= 1, n, n), got {walls.shape}"
+            )
+        count, n, _ = walls.shape
+        _check_size(n, "MazeSet.walls")
+        if starts.shape != (count, 3) or starts.dtype.kind not in "iu":
+            raise ValueError(
+                f"MazeSet.starts must be integers of shape ({count}, 3), got {starts.shape} "
+                f"{starts.dtype}"
+            )
+        starts = starts.astype(np.int64)
+        ix, iy, h = starts[:, 0], starts[:, 1], starts[:, 2]
+        inside = (ix >= 0) & (ix < n) & (iy >= 0) & (iy < n)
+        if not inside.all() or np.any((h < 0) | (h > 3)):
+            raise ValueError("MazeSet.starts must be (ix, iy, heading) in the maze, heading 0..3")
+        if walls[np.arange(count), iy, ix].any():
+            raise ValueError("MazeSet.starts must lie on free cells")
+        walls.setflags(write=False)
+        starts.setflags(write=False)
+        object.__setattr__(self, "walls", walls)
+        object.__setattr__(self, "starts", starts)
+
+    def __len__(self) -> int:
+        return int(self.walls.shape[0])
+
+    @property
+    def size(self) -> int:
+        """n, the side of the mazes (cells)."""
+        return int(self.walls.shape[1])
+
+    def __getitem__(self, k: int) -> tuple[NDArray[np.bool_], NDArray[np.int64]]:
+        """Maze ``k``: its walls ``(n, n)`` and start pose ``(3,)`` (read-only views)."""
+        return self.walls[k], self.starts[k]
+
+    def __getstate__(self) -> dict:
+        return dict(self.__dict__)
+
+    def __setstate__(self, state: dict) -> None:
+        for value in state.values():
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)  # unpickled arrays come back writeable
+        self.__dict__.update(state)
+
+
+def maze_test_set(n: int, count: int, seed: int) -> MazeSet:
+    """The fixed evaluation set: ``count`` distinct (maze, start pose) pairs of size ``n``.
+
+    Each entry is an Eller maze that is not rotation-symmetric, a free start cell drawn
+    uniformly and a heading drawn uniformly; an exact repeat of an earlier (maze, start) pair is
+    redrawn. Entries are generated in order from ``numpy.random.default_rng(seed)``, so the
+    first ``k`` entries of a set are the set of ``count = k``: the same seed always gives the
+    same list. Results are cached (the set is immutable).
+
+    Raises:
+        ValueError: ``n`` is not an odd integer >= 5, ``count`` < 1, or there are fewer than
+            ``count`` distinct pairs to be found.
+    """
+    n = _check_size(n, "maze_test_set")
+    if isinstance(count, (bool, np.bool_)) or not isinstance(count, (int, np.integer)):
+        raise ValueError(f"maze_test_set: count must be an integer >= 1, got {count!r}")
+    if count < 1:
+        raise ValueError(f"maze_test_set: count must be an integer >= 1, got {count}")
+    return _cached_test_set(n, int(count), int(seed))
+
+
+@functools.lru_cache(maxsize=16)
+def _cached_test_set(n: int, count: int, seed: int) -> MazeSet:
+    rng = np.random.default_rng(seed)
+    walls = np.empty((count, n, n), dtype=bool)
+    starts = np.empty((count, 3), dtype=np.int64)
+    seen: set[bytes] = set()
+    k = attempts = 0
+    limit = _MAX_ATTEMPTS_PER_MAZE * count + 1000
+    while k < count:
+        attempts += 1
+        if attempts > limit:
+            raise ValueError(
+                f"maze_test_set: found only {k} distinct {n} x {n} (maze, start) pairs in "
+                f"{limit} draws; ask for fewer than {count}"
+            )
+        maze = eller_maze(n, rng)
+        start = random_start(maze, rng)
+        if is_rotation_symmetric(maze):
+            continue
+        key = np.packbits(maze).tobytes() + start.tobytes()
+        if key in seen:
+            continue
+        seen.add(key)
+        walls[k] = maze
+        starts[k] = start
+        k += 1
+    return MazeSet(walls, starts, seed)

@@ -454,6 +454,117 @@ def likelihood_field_table_log_likelihood(
         out[k] = total
 
 
+@numba.njit(cache=True)
+def likelihood_field_skip_log_likelihood(
+    z: NDArray,
+    beam_angles: NDArray,
+    poses: NDArray,
+    log_table: NDArray,
+    distance_field: NDArray,
+    log_p_off_map: float,
+    resolution: float,
+    ox: float,
+    oy: float,
+    cos_yaw: float,
+    sin_yaw: float,
+    max_range: float,
+    skip_distance: float,
+    skip_threshold: float,
+    skip_error_threshold: float,
+    out: NDArray,
+) -> int:
+    """:func:`likelihood_field_table_log_likelihood` with AMCL's beam skipping, the likelihood
+    field's outlier rejection for what the map does not hold (people, open doors).
+
+    A beam whose end point lies within ``skip_distance`` (m) of a mapped obstacle for fewer than
+    ``skip_threshold`` of the particles is left out for every particle: most hypotheses agree
+    it hit something unmapped. If that would leave out more than ``skip_error_threshold`` of
+    the beams, the map itself is in doubt (or the particles are spread out), and every beam is
+    used. Shapes as in :func:`likelihood_field_table_log_likelihood`; ``distance_field`` is
+    ``(ny, nx)`` (m). Returns the number of beams skipped.
+    """
+    ny, nx = log_table.shape
+    n_beams = z.shape[0]
+    n_poses = poses.shape[0]
+    ex = np.empty(n_beams)
+    ey = np.empty(n_beams)
+    n_used = 0
+    threshold = max_range * (1.0 - MAX_READING_TOL)
+    for m in range(n_beams):
+        if z[m] >= threshold:
+            continue
+        r = max(z[m], 0.0)
+        ex[n_used] = r * np.cos(beam_angles[m])
+        ey[n_used] = r * np.sin(beam_angles[m])
+        n_used += 1
+    inv_res = 1.0 / resolution
+    # cell of every end point (-1 off the map), and per beam how many particles it agrees with
+    cells = np.empty((n_poses, n_used), dtype=np.int64)
+    agree = np.zeros(n_used, dtype=np.int64)
+    for k in range(n_poses):
+        c = np.cos(poses[k, 2])
+        s = np.sin(poses[k, 2])
+        rx0 = poses[k, 0] - ox
+        ry0 = poses[k, 1] - oy
+        for j in range(n_used):
+            rx = rx0 + c * ex[j] - s * ey[j]
+            ry = ry0 + s * ex[j] + c * ey[j]
+            gx = (cos_yaw * rx + sin_yaw * ry) * inv_res
+            gy = (-sin_yaw * rx + cos_yaw * ry) * inv_res
+            if 0.0 <= gx < nx and 0.0 <= gy < ny:
+                cell = int(gy) * nx + int(gx)
+                cells[k, j] = cell
+                if distance_field.flat[cell] < skip_distance:
+                    agree[j] += 1
+            else:
+                cells[k, j] = -1
+    keep = np.empty(n_used, dtype=np.bool_)
+    n_skipped = 0
+    for j in range(n_used):
+        keep[j] = agree[j] >= skip_threshold * n_poses
+        n_skipped += not keep[j]
+    if n_skipped > skip_error_threshold * n_used:
+        keep[:] = True
+        n_skipped = 0
+    flat = log_table.ravel()
+    for k in range(n_poses):
+        total = 0.0
+        for j in range(n_used):
+            if keep[j]:
+                cell = cells[k, j]
+                total += flat[cell] if cell >= 0 else log_p_off_map
+        out[k] = total
+    return n_skipped
+
+
+@numba.njit(cache=True)
+def occlude_ranges(
+    x: float, y: float, theta: float, beam_angles: NDArray, discs: NDArray, ranges: NDArray
+) -> None:
+    """Shorten ``ranges`` ``(M,)`` (m) in place where a beam from ``(x, y)`` along
+    ``theta + beam_angles[m]`` meets one of ``discs`` ``(P, 3)`` (centre x, y and radius, m)
+    before its current range; a sensor inside a disc reads 0 on every beam."""
+    for m in range(beam_angles.shape[0]):
+        a = theta + beam_angles[m]
+        dx = np.cos(a)
+        dy = np.sin(a)
+        for p in range(discs.shape[0]):
+            ex = discs[p, 0] - x
+            ey = discs[p, 1] - y
+            r = discs[p, 2]
+            c = ex * ex + ey * ey - r * r
+            if c <= 0.0:
+                ranges[m] = 0.0
+                continue
+            b = ex * dx + ey * dy
+            disc = b * b - c
+            if b <= 0.0 or disc < 0.0:
+                continue
+            t = b - math.sqrt(disc)
+            if t < ranges[m]:
+                ranges[m] = t
+
+
 # --------------------------------------------------------------------------- the sensor
 
 
@@ -601,11 +712,14 @@ class LidarSensor:
         return out
 
     def measure(
-        self, pose: ArrayLike, grid_arrays: GridArrays, rng: np.random.Generator
+        self, pose: ArrayLike, grid_arrays: GridArrays, rng: np.random.Generator,
+        discs: NDArray | None = None,
     ) -> NDArray[np.float64]:
         """Simulate one scan ``(M,)`` (m) from the true ``pose`` ``(3,)``.
 
-        Each beam is ray-cast, then one mixture component is drawn with probabilities
+        Each beam is ray-cast (and stopped by any of ``discs`` ``(P, 3)``, obstacles the map
+        does not hold: centre x, y and radius in m), then one mixture component is drawn with
+        probabilities
         ``(z_hit, z_short, z_max, z_rand)``:
 
         * hit: the ray-cast range plus N(0, sigma_hit^2), clipped to ``[0, max_range]``; a beam
@@ -621,6 +735,9 @@ class LidarSensor:
         if pose.shape != (3,):
             raise ValueError(f"pose must have shape (3,), got {pose.shape}")
         expected = self.expected_ranges(pose[None, :], grid_arrays)[0]
+        if discs is not None and len(discs):
+            occlude_ranges(pose[0], pose[1], pose[2], self.beam_angles,
+                           np.ascontiguousarray(discs, dtype=np.float64), expected)
         m = self.n_beams
         u = rng.random((3, m))
         normal = rng.standard_normal(m)
@@ -703,15 +820,28 @@ class LidarSensor:
 
     def field_log_likelihood(
         self, z: NDArray, poses: NDArray, grid_arrays: GridArrays, log_table: NDArray,
-        out: NDArray | None = None,
+        out: NDArray | None = None, beam_skip: tuple[float, float, float] | None = None,
+        distance_field: NDArray | None = None,
     ) -> NDArray[np.float64]:
         """The likelihood-field log-likelihood ``(K,)`` of scan ``z`` ``(M,)`` for poses
         ``(K, 3)`` from a precomputed :meth:`log_table` (the filter's fast path; the same
-        numbers as :meth:`log_likelihood`). Inputs are trusted: the env validated them."""
+        numbers as :meth:`log_likelihood`). Inputs are trusted: the env validated them.
+
+        With ``beam_skip = (distance m, threshold, error threshold)`` (AMCL's beam_skip_*
+        parameters; its defaults are (0.5, 0.3, 0.9)) and the grid's ``distance_field``
+        ``(ny, nx)`` (m), beams that disagree with the map for most particles are left out:
+        see :func:`likelihood_field_skip_log_likelihood`."""
         _, res, ox, oy, c, s = grid_arrays
         if out is None:
             out = np.empty(poses.shape[0])
         log_off = math.log(max(self.z_rand / self.max_range, PROB_FLOOR))
+        if beam_skip is not None:
+            skip_distance, skip_threshold, skip_error_threshold = beam_skip
+            likelihood_field_skip_log_likelihood(
+                z, self.beam_angles, poses, log_table, distance_field, log_off, res, ox, oy, c,
+                s, self.max_range, skip_distance, skip_threshold, skip_error_threshold, out,
+            )
+            return out
         likelihood_field_table_log_likelihood(
             z, self.beam_angles, poses, log_table, log_off, res, ox, oy, c, s, self.max_range,
             out,

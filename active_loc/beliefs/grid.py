@@ -16,7 +16,12 @@ One step of Algorithm 1:
    ``(dx_k, dy_k, dh_k)`` to the commanded motion. Where the straight path of a translation
    crosses an occupied cell or leaves the grid, the translation is blocked and the mass stays
    in its cell (it still turns), as a blocked robot does
-   (:func:`active_loc.motion.move_within_bounds`).
+   (:func:`active_loc.motion.move_within_bounds`). A motion of a fraction of a cell, as a
+   robot's step usually is, goes through :meth:`GridBelief.predict_fractional` (or
+   :meth:`GridBelief.predict_unicycle`): a kernel per heading bin that spreads the mass over
+   the neighbouring shifts and heading bins with the exact weights of the piecewise-constant
+   density under the motion and its Gaussian noise (:mod:`active_loc.beliefs.grid_motion`),
+   with the same blocking rule per outcome (:meth:`GridBelief.predict_per_heading`).
 2. **Correction** (:meth:`GridBelief.update`), ``bel(x) = eta p(z | x) bel_bar(x)``, with a
    per-pose likelihood array ``(B, X, Y, H)`` from any sensor model: the maze depth sensor
    (:class:`~active_loc.sensors.depth.DepthSensor`), or the lidar and landmark models evaluated
@@ -28,8 +33,9 @@ Entropy (nats) is the histogram entropy plus ``log(cell volume)``, the cell volu
 ``cell_size^2 * 2 pi / H`` (m^2 rad), as :mod:`active_loc.beliefs.entropy` defines it for every
 filter. For the maze (1 m cells, 4 headings) that is ``log(pi / 2)``.
 
-The loops are numba kernels over plain arrays; a 21 x 21 x 4 belief predicts or updates in a
-few microseconds.
+:meth:`GridBelief.moments` gives the mean (circular in heading) and the covariance of that
+density, the cell's own spread included. The loops are numba kernels over plain arrays; a
+21 x 21 x 4 belief predicts or updates in a few microseconds.
 """
 
 from __future__ import annotations
@@ -42,7 +48,9 @@ from typing import Any
 import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy import ndimage
 
+from active_loc.beliefs.grid_motion import fractional_kernels, noise_in_cells, unicycle_shift
 from active_loc.maps.occupancy import FREE, OccupancyGrid
 
 # --- kernels ---------------------------------------------------------------------------------
@@ -123,6 +131,222 @@ def predict_kernel(
                             out[b, x, y, th] += p * weights[k]
                         else:
                             out[b, tx, ty, th] += p * weights[k]
+
+
+@numba.njit(cache=True)
+def predict_heading_kernel(
+    prob: NDArray, free: NDArray, offsets: NDArray, weights: NDArray, out: NDArray
+) -> None:
+    """Map-aware prediction with a kernel per heading bin (fractional motion, see
+    :mod:`active_loc.beliefs.grid_motion`): ``out = sum_x p(x' | u, x) prob(x)``.
+
+    Outcome ``k`` of heading bin ``h`` moves the mass of every cell in that bin by
+    ``offsets[b, h, k] = (dx, dy, dh)`` with probability ``weights[b, h, k]``; the translation
+    is blocked as in :func:`predict_kernel` (the mass stays in its cell and still turns).
+
+    Args:
+        prob: ``(B, X, Y, H)`` belief before the motion.
+        free: ``(B, X, Y)`` bool, True = free cell.
+        offsets: ``(B, H, K, 3)`` int64 outcomes ``(dx cells, dy cells, dh bins)``.
+        weights: ``(B, H, K)`` their probabilities (0 for padding).
+        out: ``(B, X, Y, H)`` predicted belief (overwritten).
+    """
+    nb, nx, ny, nh = prob.shape
+    nk = offsets.shape[2]
+    out[:] = 0.0
+    for b in range(nb):
+        for x in range(nx):
+            for y in range(ny):
+                if not free[b, x, y]:
+                    continue
+                for h in range(nh):
+                    p = prob[b, x, y, h]
+                    if p == 0.0:
+                        continue
+                    for k in range(nk):
+                        w = weights[b, h, k]
+                        if w == 0.0:
+                            continue
+                        dx = offsets[b, h, k, 0]
+                        dy = offsets[b, h, k, 1]
+                        th = (h + offsets[b, h, k, 2]) % nh
+                        tx = x + dx
+                        ty = y + dy
+                        if dx == 0 and dy == 0:
+                            blocked = True
+                        elif abs(dx) <= 1 and abs(dy) <= 1:  # one step: only the target
+                            blocked = not (0 <= tx < nx and 0 <= ty < ny and free[b, tx, ty])
+                        else:
+                            blocked = not _path_free(free, b, x, y, dx, dy)
+                        if blocked:
+                            out[b, x, y, th] += p * w
+                        else:
+                            out[b, tx, ty, th] += p * w
+
+
+@numba.njit(cache=True)
+def translate_kernel(
+    prob: NDArray,
+    free: NDArray,
+    clearance: NDArray,
+    offsets: NDArray,
+    weights: NDArray,
+    out: NDArray,
+) -> None:
+    """The translation of :func:`predict_heading_kernel` alone: outcome ``k`` of heading bin
+    ``h`` moves the mass by ``offsets[b, h, k] = (dx, dy)`` cells with probability
+    ``weights[b, h, k]`` (shapes ``(B, H, K, 2)`` int64 and ``(B, H, K)``), blocked as there;
+    headings are kept. ``prob`` and ``out`` ``(B, X, Y, H)``, ``out`` overwritten.
+
+    ``clearance`` ``(B, X, Y)`` int64 (:func:`clearance_map`) lets a cell skip the blocking
+    test when every outcome of a heading stays inside its free square, as most cells away
+    from walls do; the result is the same."""
+    nb, nx, ny, nh = prob.shape
+    nk = offsets.shape[2]
+    reach = np.zeros(nh, dtype=np.int64)  # the longest outcome of each heading (cells)
+    out[:] = 0.0
+    for b in range(nb):
+        for h in range(nh):
+            r = 0
+            for k in range(nk):
+                if weights[b, h, k] != 0.0:
+                    r = max(r, abs(offsets[b, h, k, 0]), abs(offsets[b, h, k, 1]))
+            reach[h] = r
+        for x in range(nx):
+            for y in range(ny):
+                if not free[b, x, y]:
+                    continue
+                room = clearance[b, x, y]
+                for h in range(nh):
+                    p = prob[b, x, y, h]
+                    if p == 0.0:
+                        continue
+                    if reach[h] <= room:  # nothing in reach is blocked
+                        for k in range(nk):
+                            w = weights[b, h, k]
+                            out[b, x + offsets[b, h, k, 0], y + offsets[b, h, k, 1], h] += p * w
+                        continue
+                    for k in range(nk):
+                        w = weights[b, h, k]
+                        if w == 0.0:
+                            continue
+                        dx = offsets[b, h, k, 0]
+                        dy = offsets[b, h, k, 1]
+                        tx = x + dx
+                        ty = y + dy
+                        if dx == 0 and dy == 0:
+                            blocked = True
+                        elif abs(dx) <= 1 and abs(dy) <= 1:  # one step: only the target
+                            blocked = not (0 <= tx < nx and 0 <= ty < ny and free[b, tx, ty])
+                        else:
+                            blocked = not _path_free(free, b, x, y, dx, dy)
+                        if blocked:
+                            out[b, x, y, h] += p * w
+                        else:
+                            out[b, tx, ty, h] += p * w
+
+
+@numba.njit(cache=True)
+def turn_kernel(
+    prob: NDArray, free: NDArray, offsets: NDArray, weights: NDArray, out: NDArray
+) -> None:
+    """Every heading of member ``b`` turns by ``offsets[b, k]`` bins with probability
+    ``weights[b, k]`` (``(B, K)`` int64 and float64), wrapping around; cells keep their mass.
+    ``prob`` and ``out`` ``(B, X, Y, H)``, ``out`` overwritten."""
+    nb, nx, ny, nh = prob.shape
+    nk = offsets.shape[1]
+    out[:] = 0.0
+    for b in range(nb):
+        for x in range(nx):
+            for y in range(ny):
+                if not free[b, x, y]:
+                    continue
+                for h in range(nh):
+                    p = prob[b, x, y, h]
+                    if p == 0.0:
+                        continue
+                    for k in range(nk):
+                        w = weights[b, k]
+                        if w != 0.0:
+                            out[b, x, y, (h + offsets[b, k]) % nh] += p * w
+
+
+@numba.njit(cache=True)
+def moments_kernel(
+    prob: NDArray, xs: NDArray, ys: NDArray, thetas: NDArray, mean: NDArray, cov: NDArray
+) -> None:
+    """Mean ``(B, 3)`` and covariance ``(B, 3, 3)`` of the cell poses weighted by ``prob``
+    ``(B, X, Y, H)``: cell centres ``xs``, ``ys`` ``(X, Y)`` (m, world), bin headings
+    ``thetas`` ``(H,)`` (rad); the heading mean is circular and its residuals are wrapped to
+    [-pi, pi)."""
+    nb, nx, ny, nh = prob.shape
+    cos_t = np.cos(thetas)
+    sin_t = np.sin(thetas)
+    for b in range(nb):
+        sx = 0.0
+        sy = 0.0
+        sc = 0.0
+        ss = 0.0
+        for x in range(nx):
+            for y in range(ny):
+                for h in range(nh):
+                    p = prob[b, x, y, h]
+                    if p == 0.0:
+                        continue
+                    sx += p * xs[x, y]
+                    sy += p * ys[x, y]
+                    sc += p * cos_t[h]
+                    ss += p * sin_t[h]
+        mt = math.atan2(ss, sc)
+        residual = np.empty(nh)
+        for h in range(nh):
+            r = thetas[h] - mt
+            residual[h] = r - 2.0 * math.pi * math.floor((r + math.pi) / (2.0 * math.pi))
+        cxx = 0.0
+        cxy = 0.0
+        cyy = 0.0
+        cxt = 0.0
+        cyt = 0.0
+        ctt = 0.0
+        for x in range(nx):
+            for y in range(ny):
+                for h in range(nh):
+                    p = prob[b, x, y, h]
+                    if p == 0.0:
+                        continue
+                    ex = xs[x, y] - sx
+                    ey = ys[x, y] - sy
+                    et = residual[h]
+                    cxx += p * ex * ex
+                    cxy += p * ex * ey
+                    cyy += p * ey * ey
+                    cxt += p * ex * et
+                    cyt += p * ey * et
+                    ctt += p * et * et
+        mean[b, 0] = sx
+        mean[b, 1] = sy
+        mean[b, 2] = mt - 2.0 * math.pi * math.floor((mt + math.pi) / (2.0 * math.pi))
+        cov[b, 0, 0] = cxx
+        cov[b, 0, 1] = cxy
+        cov[b, 1, 0] = cxy
+        cov[b, 1, 1] = cyy
+        cov[b, 0, 2] = cxt
+        cov[b, 2, 0] = cxt
+        cov[b, 1, 2] = cyt
+        cov[b, 2, 1] = cyt
+        cov[b, 2, 2] = ctt
+
+
+def clearance_map(free: NDArray[np.bool_]) -> NDArray[np.int64]:
+    """``(B, X, Y)`` int64: for each free cell the largest ``r`` such that every cell within
+    ``r`` cells (Chebyshev distance) is inside the grid and free; -1 on occupied cells. A
+    translation of at most ``r`` cells in x and in y from there is never blocked."""
+    out = np.empty(free.shape, dtype=np.int64)
+    for b in range(free.shape[0]):
+        padded = np.pad(free[b], 1, constant_values=False)
+        distance = ndimage.distance_transform_cdt(padded, metric="chessboard")
+        out[b] = distance[1:-1, 1:-1] - 1
+    return out
 
 
 @numba.njit(cache=True)
@@ -316,6 +540,27 @@ _DETERMINISTIC = MotionKernel(np.zeros((1, 3), dtype=np.int64), np.ones(1))
 # --- the belief ------------------------------------------------------------------------------
 
 
+def coarse_free_mask(grid: OccupancyGrid, cell_size: float) -> NDArray[np.bool_]:
+    """``(X, Y)`` bool, indexed ``[ix, iy]``: the cells of side ``cell_size`` (m) laid over
+    ``grid`` from its origin (``X = ceil(width / cell_size)``, likewise Y) that hold the centre
+    of at least one FREE map cell. Such a cell can hold the robot, so a belief over these
+    cells never rules out the true pose; cells of walls or unknown space only are occupied."""
+    cell_size = float(cell_size)
+    if not (math.isfinite(cell_size) and cell_size > 0.0):
+        raise ValueError(f"cell_size must be finite and > 0 (m), got {cell_size}")
+    ny, nx = grid.shape
+    ratio = grid.resolution / cell_size
+    n_x = max(1, math.ceil(nx * ratio - 1e-9))
+    n_y = max(1, math.ceil(ny * ratio - 1e-9))
+    ix = np.minimum(((np.arange(nx) + 0.5) * ratio).astype(np.int64), n_x - 1)
+    iy = np.minimum(((np.arange(ny) + 0.5) * ratio).astype(np.int64), n_y - 1)
+    free = np.zeros((n_x, n_y), dtype=np.bool_)
+    rows, cols = np.nonzero(grid.values == FREE)
+    free[ix[cols], iy[rows]] = True
+    return free
+
+
+
 def _as_int_array(value: ArrayLike, name: str) -> NDArray[np.int64]:
     arr = np.asarray(value)
     if arr.dtype.kind not in "iu":
@@ -397,12 +642,19 @@ class GridBelief:
 
     @classmethod
     def from_grid(
-        cls, grid: OccupancyGrid, n_headings: int = 4, batch_size: int = 1
+        cls, grid: OccupancyGrid, n_headings: int = 4, batch_size: int = 1,
+        cell_size: float | None = None,
     ) -> GridBelief:
-        """A uniform belief over the FREE cells of an occupancy grid (its resolution, origin
-        and yaw)."""
-        free = np.ascontiguousarray(grid.values.T == FREE)
-        return cls(free, n_headings, grid.resolution, grid.origin, batch_size)
+        """A uniform belief over the free cells of an occupancy grid (its origin and yaw).
+
+        With ``cell_size`` None the belief's cells are the map's; otherwise cells of
+        ``cell_size`` m over the map, each free when it holds a FREE map cell
+        (:func:`coarse_free_mask`)."""
+        if cell_size is None:
+            free = np.ascontiguousarray(grid.values.T == FREE)
+            return cls(free, n_headings, grid.resolution, grid.origin, batch_size)
+        free = coarse_free_mask(grid, cell_size)
+        return cls(free, n_headings, cell_size, grid.origin, batch_size)
 
     # -- state ----------------------------------------------------------------------------------
 
@@ -462,6 +714,34 @@ class GridBelief:
         update_kernel(self._prob, np.ones_like(self._prob), self._free, self._evidence)
         self._evidence.fill(np.nan)
 
+    def initialize_gaussian(self, mean: ArrayLike, cov: ArrayLike) -> None:
+        """Every member proportional to ``N(pose; mean, cov)`` at its free cell poses
+        (:meth:`cell_poses`; heading residual wrapped): ``mean`` ``(3,)`` or ``(B, 3)`` (m, m,
+        rad), ``cov`` ``(3, 3)`` positive definite. A member whose Gaussian vanishes on every
+        free pose is made uniform."""
+        b = self.batch_size
+        mu = np.asarray(mean, dtype=np.float64)
+        mu = np.broadcast_to(mu, (b, 3)) if mu.shape == (3,) else mu
+        sigma = np.asarray(cov, dtype=np.float64)
+        if mu.shape != (b, 3) or not np.all(np.isfinite(mu)):
+            raise ValueError(f"mean must be finite with shape (3,) or ({b}, 3), got {mu.shape}")
+        if sigma.shape != (3, 3) or not np.all(np.isfinite(sigma)):
+            raise ValueError(f"cov must be a finite (3, 3) matrix, got shape {sigma.shape}")
+        try:
+            root = np.linalg.cholesky(0.5 * (sigma + sigma.T))
+        except np.linalg.LinAlgError:
+            raise ValueError("cov must be positive definite") from None
+        poses = self.cell_poses()
+        prob = np.empty(self._prob.shape)
+        for member in range(b):
+            r = poses - mu[member]
+            r[..., 2] = (r[..., 2] + np.pi) % (2.0 * np.pi) - np.pi
+            u = np.linalg.solve(root, r.reshape(-1, 3).T)
+            log_p = -0.5 * np.sum(u * u, axis=0).reshape(poses.shape[:3])
+            log_p -= log_p.max()
+            prob[member] = np.exp(log_p) * self._free[member][:, :, None]
+        self.set_prob(prob)
+
     # -- Algorithm 1 ----------------------------------------------------------------------------
 
     def predict(
@@ -503,6 +783,92 @@ class GridBelief:
         int64 and ``weights`` ``(K,)`` (:class:`MotionKernel` attributes)."""
         predict_kernel(self._prob, self._free, shift, turn, offsets, weights, self._scratch)
         self._prob, self._scratch = self._scratch, self._prob
+
+    def predict_per_heading(self, offsets: ArrayLike, weights: ArrayLike) -> None:
+        """Prediction step with a transition kernel per heading bin.
+
+        Args:
+            offsets: ``(H, K, 3)`` or ``(B, H, K, 3)`` int: outcome ``k`` of a robot in heading
+                bin ``h`` moves it by ``(dx, dy)`` cells and turns it by ``dh`` bins.
+            weights: ``(H, K)`` or ``(B, H, K)`` probabilities of the outcomes, >= 0, each
+                heading's summing to 1 (within 1e-9).
+
+        Translations are blocked as in :meth:`predict`: the mass stays in its cell (and still
+        turns) where the path meets an occupied cell or the grid's edge.
+        """
+        b, _, _, h = self._prob.shape
+        off = _as_int_array(offsets, "offsets")
+        w = np.asarray(weights, dtype=np.float64)
+        if off.ndim == 3:
+            off = np.broadcast_to(off[None], (b, *off.shape))
+        if w.ndim == 2:
+            w = np.broadcast_to(w[None], (b, *w.shape))
+        if off.ndim != 4 or off.shape[:2] != (b, h) or off.shape[3] != 3:
+            raise ValueError(
+                f"offsets must have shape ({h}, K, 3) or ({b}, {h}, K, 3), got {off.shape}"
+            )
+        if w.shape != off.shape[:3]:
+            raise ValueError(f"weights must have shape {off.shape[:3]}, got {w.shape}")
+        if not np.all(np.isfinite(w)) or np.any(w < 0.0):
+            raise ValueError("weights must be finite and >= 0")
+        if np.any(np.abs(w.sum(axis=2) - 1.0) > 1e-9):
+            raise ValueError("weights of every heading must sum to 1")
+        self.predict_per_heading_arrays(np.ascontiguousarray(off), np.ascontiguousarray(w))
+
+    def predict_per_heading_arrays(self, offsets: NDArray[np.int64], weights: NDArray) -> None:
+        """:meth:`predict_per_heading` without input checks: C-contiguous int64 ``offsets``
+        ``(B, H, K, 3)`` and float64 ``weights`` ``(B, H, K)``."""
+        predict_heading_kernel(self._prob, self._free, offsets, weights, self._scratch)
+        self._prob, self._scratch = self._scratch, self._prob
+
+    def predict_fractional(
+        self, shift: ArrayLike, turn: ArrayLike = 0.0, noise_std: ArrayLike = (0.0, 0.0, 0.0)
+    ) -> None:
+        """Prediction step with a fractional motion: the exact transition of the
+        piecewise-constant density (:mod:`active_loc.beliefs.grid_motion`).
+
+        Args:
+            shift: ``(H, 2)`` or ``(B, H, 2)`` real translation (cells, grid frame) of a
+                robot in each heading bin.
+            turn: real or ``(B,)`` turn (heading bins, counterclockwise).
+            noise_std: ``(3,)`` Gaussian motion noise standard deviations (cells, cells,
+                heading bins), >= 0.
+
+        The same transition as :meth:`predict_per_heading` with
+        :func:`~active_loc.beliefs.grid_motion.fractional_kernel`, applied in its two factors
+        (translation, then turn). Integer shifts and turns without noise equal :meth:`predict`.
+        """
+        b, _, _, h = self._prob.shape
+        sh = np.asarray(shift, dtype=np.float64)
+        if sh.shape == (h, 2):
+            sh = np.broadcast_to(sh, (b, h, 2))
+        elif sh.shape != (b, h, 2):
+            raise ValueError(f"shift must have shape ({h}, 2) or ({b}, {h}, 2), got {sh.shape}")
+        tr = np.asarray(turn, dtype=np.float64)
+        if tr.shape == ():
+            tr = np.broadcast_to(tr, (b,))
+        elif tr.shape != (b,):
+            raise ValueError(f"turn must be a number or have shape ({b},), got {tr.shape}")
+        if not (np.all(np.isfinite(sh)) and np.all(np.isfinite(tr))):
+            raise ValueError("shift and turn must be finite")
+        std = np.asarray(noise_std, dtype=np.float64)
+        if std.shape != (3,) or not np.all(np.isfinite(std)) or np.any(std < 0.0):
+            raise ValueError(f"noise_std must be 3 finite numbers >= 0, got {noise_std!r}")
+        move, move_w, turns, turn_w = fractional_kernels(sh, tr, std)
+        # translate with the heading before the turn, then turn (blocked or not)
+        translate_kernel(self._prob, self._free, self.clearance, move, move_w, self._scratch)
+        turn_kernel(self._scratch, self._free, turns, turn_w, self._prob)
+
+    def predict_unicycle(
+        self, v: float, omega: float, dt: float, noise_std: ArrayLike = (0.0, 0.0, 0.0)
+    ) -> None:
+        """Prediction step of the unicycle (:mod:`active_loc.motion`) on the grid: speed ``v``
+        (m/s) and turn rate ``omega`` (rad/s) for ``dt`` (s), with the per-step noise standard
+        deviations ``noise_std`` ``(3,)`` (m, m, rad); the same control for every member."""
+        shift, turn = unicycle_shift(v, omega, dt, self.cell_size, self.n_headings)
+        self.predict_fractional(
+            shift, turn, noise_in_cells(noise_std, self.cell_size, self.n_headings)
+        )
 
     def update(self, likelihood: ArrayLike) -> NDArray[np.float64]:
         """Correction step: multiply by a per-pose likelihood and normalize.
@@ -596,6 +962,26 @@ class GridBelief:
         stats_kernel(self._prob, self.log_cell_volume, entropy, index, top)
         return entropy, index, top
 
+    def moments(
+        self, within_cell: bool = True
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Mean ``(B, 3)`` (m, m, rad) and covariance ``(B, 3, 3)`` of the pose.
+
+        The heading mean is circular and heading residuals are wrapped. With ``within_cell``
+        (the default) the covariance is that of the piecewise-constant density the histogram
+        stands for, the one whose entropy :meth:`entropy` reports: the cell poses' covariance
+        plus the spread inside a cell, ``diag(c^2 / 12, c^2 / 12, (2 pi / H)^2 / 12)``
+        (``c`` = cell size); without it, that of the cell poses alone.
+        """
+        b, _, _, nh = self._prob.shape
+        mean = np.empty((b, 3))
+        cov = np.empty((b, 3, 3))
+        moments_kernel(self._prob, *self._cell_geometry(), mean, cov)
+        if within_cell:
+            bin_width = 2.0 * math.pi / nh
+            cov += np.diag([self.cell_size**2, self.cell_size**2, bin_width**2]) / 12.0
+        return mean, cov
+
     def marginal_xy(self) -> NDArray[np.float64]:
         """``(B, X, Y)`` probability of each cell, headings summed."""
         return self._prob.sum(axis=3)
@@ -605,18 +991,44 @@ class GridBelief:
         centres and heading bins, for sensor models that score poses (lidar, landmarks):
         ``belief.update_log(sensor_ll(poses.reshape(-1, 3)).reshape(X, Y, H))``."""
         _, nx, ny, nh = self.shape
-        ox, oy, yaw = self.origin
-        c, s = math.cos(yaw), math.sin(yaw)
-        gx = (np.arange(nx) + 0.5) * self.cell_size
-        gy = (np.arange(ny) + 0.5) * self.cell_size
-        u, v = np.meshgrid(gx, gy, indexing="ij")
-        theta = yaw + 2.0 * np.pi * np.arange(nh) / nh
-        theta = (theta + np.pi) % (2.0 * np.pi) - np.pi
+        xs, ys, theta = self._cell_geometry()
         out = np.empty((nx, ny, nh, 3))
-        out[..., 0] = (ox + c * u - s * v)[..., None]
-        out[..., 1] = (oy + s * u + c * v)[..., None]
+        out[..., 0] = xs[..., None]
+        out[..., 1] = ys[..., None]
         out[..., 2] = theta
         return out
+
+    @property
+    def clearance(self) -> NDArray[np.int64]:
+        """``(B, X, Y)`` int64 :func:`clearance_map` of the free mask: how far (cells) mass
+        can move from each cell without meeting a wall; computed once, read-only, shared by
+        copies."""
+        cached = self.__dict__.get("_clearance_cache")
+        if cached is None:
+            cached = clearance_map(self._free)
+            cached.setflags(write=False)
+            self._clearance_cache = cached
+        return cached
+
+    def _cell_geometry(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray]:
+        """World x ``(X, Y)``, y ``(X, Y)`` (m) of the cell centres and headings ``(H,)`` (rad)
+        of the bins; computed once, read-only, shared by copies."""
+        cached = self.__dict__.get("_geometry")
+        if cached is None:
+            _, nx, ny, nh = self.shape
+            ox, oy, yaw = self.origin
+            c, s = math.cos(yaw), math.sin(yaw)
+            gx = (np.arange(nx) + 0.5) * self.cell_size
+            gy = (np.arange(ny) + 0.5) * self.cell_size
+            u, v = np.meshgrid(gx, gy, indexing="ij")
+            theta = yaw + 2.0 * np.pi * np.arange(nh) / nh
+            theta = (theta + np.pi) % (2.0 * np.pi) - np.pi
+            cached = (np.ascontiguousarray(ox + c * u - s * v),
+                      np.ascontiguousarray(oy + s * u + c * v), theta)
+            for array in cached:
+                array.setflags(write=False)
+            self._geometry = cached
+        return cached
 
     @property
     def mean(self) -> NDArray[np.float64]:
@@ -645,3 +1057,7 @@ class GridBelief:
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
         self._free.setflags(write=False)
+        for array in self.__dict__.get("_geometry") or ():
+            array.setflags(write=False)
+        if "_clearance_cache" in self.__dict__:
+            self._clearance_cache.setflags(write=False)

@@ -2,7 +2,8 @@
 
 The reference is brute-force Bayes written here in plain Python: a dict over every pose
 ``(x, y, h)``, the motion applied outcome by outcome with the documented blocking rule, the
-measurement multiplied in and normalized by hand. The filter must agree to 1e-12.
+measurement multiplied in and normalized by hand. The filter must agree to 1e-12 (to 1e-8 with
+fractional motion, whose weights the reference integrates numerically).
 """
 
 from __future__ import annotations
@@ -15,8 +16,10 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
+from scipy.integrate import quad
 
-from active_loc.beliefs.grid import GridBelief, MotionKernel
+from active_loc.beliefs.grid import GridBelief, MotionKernel, coarse_free_mask
+from active_loc.beliefs.grid_motion import axis_weights, fractional_kernel
 from active_loc.beliefs.mcl import landmark_log_likelihood
 from active_loc.envs.maze_env import TURN_LEFT, TURN_RIGHT, MazeMotion
 from active_loc.maps.maze import eller_maze, maze_to_grid
@@ -467,3 +470,252 @@ def test_depth_sensor_likelihoods_are_indicators_of_the_table() -> None:
     assert not twin.likelihoods.flags.writeable
     with pytest.raises(ValueError, match="free"):
         depth_table(np.ones((3, 3)))
+
+
+# --- fractional motion (per-heading kernels) -------------------------------------------------
+
+
+def tent_weight(s: float, k: int, std: float) -> float:
+    """The share of a cell's mass, uniform over the cell, that lands ``k`` cells away after a
+    shift ``s`` plus N(0, std^2): the shifted cell's overlap with cell k, by quadrature."""
+    if std == 0.0:
+        return max(0.0, 1.0 - abs(s - k))
+    kinks = [k - s - 1.0, k - s, k - s + 1.0]
+    value, _ = quad(
+        lambda n: max(0.0, 1.0 - abs(s - k + n)) * math.exp(-0.5 * (n / std) ** 2),
+        -12.0 * std - 2.0, 12.0 * std + 2.0, points=kinks, limit=200, epsabs=1e-14,
+    )
+    return value / (std * math.sqrt(2.0 * math.pi))
+
+
+def brute_fractional_predict(
+    bel: dict, free: np.ndarray, n_h: int, shift: np.ndarray, turn: float, std: tuple
+) -> dict:
+    """One fractional prediction over every pose and outcome, weights by quadrature."""
+    nx, ny = free.shape
+    turns = {d: tent_weight(turn, d, std[2]) for d in range(math.floor(turn) - 3,
+                                                           math.floor(turn) + 5)}
+    axis = {}
+    for h in range(n_h):
+        for a in range(2):
+            s = float(shift[h][a])
+            axis[h, a] = {d: tent_weight(s, d, std[a])
+                          for d in range(math.floor(s) - 3, math.floor(s) + 5)}
+    out: dict = defaultdict(float)
+    for (x, y, h), p in bel.items():
+        for dx, wx in axis[h, 0].items():
+            for dy, wy in axis[h, 1].items():
+                for dh, wt in turns.items():
+                    w = wx * wy * wt
+                    if w < 1e-15:
+                        continue
+                    path = path_cells(x, y, dx, dy)
+                    ok = (dx, dy) != (0, 0) and all(
+                        0 <= cx < nx and 0 <= cy < ny and free[cx, cy] for cx, cy in path
+                    )
+                    th = (h + dh) % n_h
+                    out[(x + dx, y + dy, th) if ok else (x, y, th)] += p * w
+    return dict(out)
+
+
+def assert_close(belief: GridBelief, bel: dict, atol: float) -> None:
+    for (x, y, h), p in as_dict(belief.prob[0]).items():
+        assert abs(p - bel.get((x, y, h), 0.0)) <= atol, (x, y, h)
+
+
+@pytest.mark.parametrize(
+    ("s", "std"), [(0.3, 0.08), (-1.7, 0.3), (0.0, 0.0), (2.5, 0.0), (0.05, 0.08), (0.0, 0.5)]
+)
+def test_axis_weights_are_the_overlap_of_a_shifted_noisy_cell(s: float, std: float) -> None:
+    first, weights = axis_weights([s], std)
+    assert weights.sum() == pytest.approx(1.0, abs=1e-12)
+    for j, w in enumerate(weights[0]):
+        assert w == pytest.approx(tent_weight(s, int(first[0]) + j, std), abs=1e-8)
+    # the mean displacement is the shift itself: no drift from the discretization
+    displacement = float(np.dot(weights[0], first[0] + np.arange(weights.shape[1])))
+    assert displacement == pytest.approx(s, abs=1e-8)
+
+
+def test_per_heading_prediction_equals_brute_force_bayes() -> None:
+    free = parse(TINY)
+    n_h = 4
+    rng = np.random.default_rng(1)
+    belief = GridBelief(free, n_h)
+    start = rng.random((1, *free.shape, n_h)) * free[None, :, :, None]
+    belief.set_prob(start)
+    bel = {k: v for k, v in as_dict(start[0] / start.sum()).items() if free[k[0], k[1]]}
+    for _ in range(6):
+        offsets = rng.integers(-2, 3, size=(n_h, 5, 3))
+        weights = rng.random((n_h, 5))
+        weights[:, -1] = 0.0  # padding outcomes
+        weights /= weights.sum(axis=1, keepdims=True)
+        belief.predict_per_heading(offsets, weights)
+        out: dict = defaultdict(float)
+        for (x, y, h), p in bel.items():
+            for (dx, dy, dh), w in zip(offsets[h].tolist(), weights[h].tolist(), strict=True):
+                step = brute_predict({(x, y, h): p}, free, n_h, [[dx, dy]] * n_h, dh,
+                                     [(0, 0, 0, w)])
+                for pose, q in step.items():
+                    out[pose] += q
+        bel = dict(out)
+        assert_matches(belief, bel)
+        likelihood = rng.random((*free.shape, n_h))
+        belief.update(likelihood)
+        bel = brute_update(bel, likelihood)
+        assert_matches(belief, bel)
+
+
+def test_fractional_prediction_equals_brute_force_bayes() -> None:
+    free = parse(["....#",
+                  ".#...",
+                  "...#.",
+                  "....."])  # fmt: skip
+    n_h = 8
+    rng = np.random.default_rng(2)
+    belief = GridBelief(free, n_h)
+    bel = {k: v for k, v in as_dict(belief.prob[0]).items() if free[k[0], k[1]]}
+    angles = 2 * np.pi * np.arange(n_h) / n_h
+    std = (0.15, 0.1, 0.2)
+    for step, (speed, turn) in enumerate([(0.6, 0.3), (1.4, -1.2), (0.0, 0.5), (2.2, 0.0)]):
+        shift = speed * np.column_stack([np.cos(angles), np.sin(angles)])
+        noise = std if step % 2 == 0 else (0.0, 0.0, 0.0)
+        belief.predict_fractional(shift, turn, noise)
+        bel = brute_fractional_predict(bel, free, n_h, shift, turn, noise)
+        assert_close(belief, bel, 1e-8)
+        assert belief.prob[0][~free].sum() == 0.0
+        assert belief.prob.sum() == pytest.approx(1.0, abs=1e-12)
+        likelihood = rng.random((*free.shape, n_h))
+        belief.update(likelihood)
+        bel = brute_update(bel, likelihood)
+        assert_close(belief, bel, 1e-8)
+
+
+def test_fractional_prediction_is_the_product_kernel_applied_in_two_factors() -> None:
+    walls = eller_maze(9, np.random.default_rng(1))
+    free = np.ascontiguousarray(~walls.T)
+    one, two = GridBelief(free, 16), GridBelief(free, 16)
+    rng = np.random.default_rng(3)
+    start = rng.random((1, *free.shape, 16)) * free[None, :, :, None]
+    one.set_prob(start)
+    two.set_prob(start)
+    for _ in range(5):
+        shift = rng.normal(0.0, 1.2, (16, 2))
+        turn = float(rng.normal(0.0, 2.0))
+        noise = (0.1, 0.2, 0.3)
+        one.predict_fractional(shift, turn, noise)
+        two.predict_per_heading(*(a[0] for a in fractional_kernel(shift[None], [turn], noise)))
+        assert np.allclose(one.prob, two.prob, rtol=0.0, atol=1e-15)
+
+
+def test_integer_motion_without_noise_equals_predict() -> None:
+    free = parse(TINY)
+    one, two = GridBelief(free, 4), GridBelief(free, 4)
+    start = np.random.default_rng(4).random((1, 4, 3, 4)) * free[None, :, :, None]
+    one.set_prob(start)
+    two.set_prob(start)
+    shift = np.array([[1, 0], [0, 1], [-2, 0], [0, -1]])
+    for turn in (0, 1, -1, 3):
+        one.predict_fractional(shift.astype(float), float(turn))
+        two.predict(shift, turn)
+        assert np.allclose(one.prob, two.prob, rtol=0.0, atol=1e-15)
+
+
+def test_unicycle_prediction_moves_the_mean_by_v_dt_and_keeps_walls_empty() -> None:
+    free = np.ones((40, 40), dtype=bool)
+    belief = GridBelief(free, 36, cell_size=0.25)
+    prob = np.zeros((1, 40, 40, 36))
+    prob[0, 20, 20, 3] = 1.0  # heading 30 degrees
+    belief.set_prob(prob)
+    before = belief.moments(within_cell=False)[0][0]
+    belief.predict_unicycle(0.8, 0.0, 0.2, noise_std=(0.02, 0.02, 0.01))
+    after = belief.moments(within_cell=False)[0][0]
+    step = 0.8 * 0.2 * np.array([np.cos(np.pi / 6), np.sin(np.pi / 6)])
+    assert np.allclose(after[:2] - before[:2], step, atol=1e-9)
+    assert after[2] == pytest.approx(np.pi / 6, abs=1e-9)
+    # in a maze, mass never enters a wall and the total stays 1
+    walls = eller_maze(9, np.random.default_rng(6))
+    maze = GridBelief(np.ascontiguousarray(~walls.T), 16)
+    for k in range(20):
+        maze.predict_unicycle(0.9, 0.4 * (-1) ** k, 0.5, noise_std=(0.1, 0.1, 0.05))
+        assert maze.prob[0][walls.T].sum() == 0.0
+        assert maze.prob.sum() == pytest.approx(1.0, abs=1e-12)
+
+
+def test_moments_are_the_weighted_cell_poses_plus_the_cells_own_spread() -> None:
+    grid = small_room()
+    belief = GridBelief.from_grid(grid, n_headings=8)
+    rng = np.random.default_rng(7)
+    belief.set_prob(rng.random((1, 12, 8, 8)) ** 4 * belief.free[:, :, :, None])
+    mean, cov = belief.moments(within_cell=False)
+    w = belief.prob[0].reshape(-1)
+    poses = belief.cell_poses().reshape(-1, 3)
+    heading = np.arctan2(w @ np.sin(poses[:, 2]), w @ np.cos(poses[:, 2]))
+    assert np.allclose(mean[0], [w @ poses[:, 0], w @ poses[:, 1], heading], atol=1e-12)
+    assert np.allclose(mean[0], belief.mean[0], atol=1e-12)
+    residual = poses - mean[0]
+    residual[:, 2] = (residual[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    assert np.allclose(cov[0], (residual * w[:, None]).T @ residual, atol=1e-12)
+    _, full = belief.moments()
+    spread = np.diag([0.25, 0.25, (2 * np.pi / 8) ** 2]) / 12.0
+    assert np.allclose(full[0] - cov[0], spread, atol=1e-15)
+
+
+def test_coarse_cells_are_free_where_a_free_map_cell_lies() -> None:
+    values = np.full((10, 10), FREE, dtype=np.int8)  # 1 m x 1 m at 0.1 m
+    values[:, 5] = OCCUPIED  # a wall one map cell thick
+    values[0:4, 0:4] = OCCUPIED
+    grid = OccupancyGrid(values, 0.1, origin=(2.0, 3.0, 0.0))
+    free = coarse_free_mask(grid, 0.25)  # 4 x 4 cells (the last one past the map)
+    assert free.shape == (4, 4)
+    expected = np.zeros((4, 4), dtype=bool)
+    for iy in range(10):
+        for ix in range(10):
+            if values[iy, ix] == FREE:
+                expected[int((ix + 0.5) * 0.4), int((iy + 0.5) * 0.4)] = True
+    assert np.array_equal(free, expected)
+    assert not free[0, 0] and free[2, 0]  # the block; the wall's cell also holds free space
+    belief = GridBelief.from_grid(grid, n_headings=4, cell_size=0.25)
+    assert belief.shape == (1, 4, 4, 4) and belief.cell_size == 0.25
+    assert np.array_equal(belief.free[0], free)
+    # any free point of the map lies in a free cell
+    points = grid.sample_free(np.random.default_rng(0), 500)
+    cells = np.floor((points - [2.0, 3.0]) / 0.25).astype(int)
+    assert free[cells[:, 0], cells[:, 1]].all()
+    with pytest.raises(ValueError, match="cell_size"):
+        coarse_free_mask(grid, 0.0)
+
+
+def test_gaussian_initialization_peaks_at_the_mean_and_skips_walls() -> None:
+    grid = small_room()
+    belief = GridBelief.from_grid(grid, n_headings=8)
+    mean = belief.cell_poses()[8, 5, 3]
+    belief.initialize_gaussian(mean, np.diag([0.3, 0.3, 0.2]) ** 2)
+    assert belief.mode().tolist() == [[8, 5, 3]]
+    assert belief.prob[0][~belief.free[0]].sum() == 0.0
+    assert belief.prob.sum() == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="cov"):
+        belief.initialize_gaussian(mean, -np.eye(3))
+
+
+@pytest.mark.parametrize(
+    ("call", "match"),
+    [
+        (lambda b: b.predict_per_heading(np.zeros((3, 1, 3), dtype=int), np.ones((3, 1))),
+         "offsets"),
+        (lambda b: b.predict_per_heading(np.zeros((4, 1, 3)), np.ones((4, 1))), "offsets"),
+        (lambda b: b.predict_per_heading(np.zeros((4, 2, 3), dtype=int), np.ones((4, 2))),
+         "sum to 1"),
+        (lambda b: b.predict_per_heading(np.zeros((4, 1, 3), dtype=int), np.ones((4, 2))),
+         "weights"),
+        (lambda b: b.predict_fractional(np.zeros((3, 2))), "shift"),
+        (lambda b: b.predict_fractional(np.full((4, 2), np.nan)), "finite"),
+        (lambda b: b.predict_fractional(np.zeros((4, 2)), noise_std=(0.1, -0.1, 0.0)),
+         "noise_std"),
+    ],
+)
+def test_bad_fractional_input_raises_value_error(call, match: str) -> None:
+    belief = GridBelief(parse(TINY))
+    before = belief.prob.copy()
+    with pytest.raises(ValueError, match=match):
+        call(belief)
+    assert np.array_equal(belief.prob, before)

@@ -1,0 +1,157 @@
+"""``SB3Agent``: a saved stable-baselines3 (or sb3-contrib) model behind the agent interface.
+
+::
+
+    agent = SB3Agent.load("runs/Maze-v0-ppo-0")       # the run folder or its model.zip
+    obs, info = env.reset(seed=0)
+    action = agent.act(obs, env.unwrapped.planner_view())
+
+stable-baselines3 is imported only when a model is loaded, so importing this module needs
+none of the training dependencies.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+#: algorithm name (as ``active_loc.train`` spells it) -> (module, class)
+ALGORITHMS: dict[str, tuple[str, str]] = {
+    "ppo": ("stable_baselines3", "PPO"),
+    "a2c": ("stable_baselines3", "A2C"),
+    "dqn": ("stable_baselines3", "DQN"),
+    "sac": ("stable_baselines3", "SAC"),
+    "recurrent_ppo": ("sb3_contrib", "RecurrentPPO"),
+}
+
+MODEL_FILE = "model.zip"
+CONFIG_FILE = "config.json"
+
+
+def algorithm_class(algo: str) -> Any:
+    """The class of ``algo`` (a key of :data:`ALGORITHMS`)."""
+    if algo not in ALGORITHMS:
+        raise ValueError(f"algo must be one of {sorted(ALGORITHMS)}, got {algo!r}")
+    module, name = ALGORITHMS[algo]
+    return getattr(importlib.import_module(module), name)
+
+
+def model_path(path: str | os.PathLike[str]) -> Path:
+    """The model file of ``path``: a run folder (its ``model.zip``) or a ``.zip`` file (the
+    suffix may be left out, as stable-baselines3 allows)."""
+    p = Path(path)
+    if p.is_dir():
+        p = p / MODEL_FILE
+    elif not p.exists() and p.suffix != ".zip" and p.with_suffix(".zip").exists():
+        p = p.with_suffix(".zip")
+    if not p.is_file():
+        raise FileNotFoundError(f"no saved model at {path} (looked for {p})")
+    return p
+
+
+def config_algorithm(model_file: Path) -> str | None:
+    """The ``algo`` recorded in the ``config.json`` of the run the model belongs to: next to
+    the model, or one folder up (checkpoints/, eval/best_model.zip). None if there is none."""
+    for folder in (model_file.parent, model_file.parent.parent):
+        config = folder / CONFIG_FILE
+        if config.is_file():
+            algo = json.loads(config.read_text()).get("args", {}).get("algo")
+            if algo in ALGORITHMS:
+                return str(algo)
+    return None
+
+
+def load_model(path: str | os.PathLike[str], device: str = "cpu") -> Any:
+    """Load a saved model with the class named by its run's ``config.json``; without one,
+    try PPO, A2C, DQN, SAC and RecurrentPPO in turn."""
+    file = model_path(path)
+    algo = config_algorithm(file)
+    if algo is not None:
+        return algorithm_class(algo).load(file, device=device)
+    errors = []
+    for name in ALGORITHMS:
+        try:
+            cls = algorithm_class(name)
+        except ImportError as error:  # sb3-contrib missing
+            errors.append(f"{name}: {error}")
+            continue
+        try:
+            return cls.load(file, device=device)
+        except Exception as error:
+            errors.append(f"{name}: {type(error).__name__}: {error}")
+    raise ValueError(f"{file} could not be loaded by any of {list(ALGORITHMS)}: {errors}")
+
+
+class SB3Agent:
+    """A stable-baselines3 model as an agent: ``act(observation, view) -> action``.
+
+    Args:
+        model_or_path: a model object, or the path of a saved model (see :meth:`load`).
+        deterministic: take the policy's most likely action instead of sampling.
+        device: torch device to load a saved model on.
+
+    The view (``env.unwrapped.planner_view()``) is not used to choose actions; the policy sees
+    only the observation. For recurrent policies (RecurrentPPO) the agent carries the LSTM
+    state from step to step and starts a new episode, resetting the state, whenever
+    ``view.step == 0`` (the first action after ``env.reset()``). Call :meth:`reset` to start a
+    new episode by hand, for views without a ``step``.
+
+    Actions come back in the env's format: an ``int`` for ``Discrete`` spaces, an array of the
+    space's shape and dtype otherwise.
+    """
+
+    def __init__(
+        self, model_or_path: Any, deterministic: bool = True, device: str = "cpu"
+    ) -> None:
+        if isinstance(model_or_path, (str, os.PathLike)):
+            model_or_path = load_model(model_or_path, device=device)
+        if not hasattr(model_or_path, "predict"):
+            raise TypeError(
+                f"model_or_path must be a stable-baselines3 model or a path, got "
+                f"{type(model_or_path).__name__}"
+            )
+        self.model = model_or_path
+        self.deterministic = deterministic
+        self.action_space: spaces.Space = self.model.action_space
+        self.recurrent = hasattr(self.model.policy, "lstm_actor")
+        self._state: Any = None
+        self._episode_start = True
+
+    @classmethod
+    def load(
+        cls, path: str | os.PathLike[str], deterministic: bool = True, device: str = "cpu"
+    ) -> SB3Agent:
+        """Load a model saved by ``python train.py``: ``path`` is the run folder, its
+        ``model.zip``, or any other saved model of the run (a checkpoint, the best model). The
+        algorithm class comes from the run's ``config.json``; without one, PPO, A2C, DQN, SAC
+        and RecurrentPPO are tried in turn."""
+        return cls(load_model(path, device=device), deterministic=deterministic)
+
+    def reset(self) -> None:
+        """Forget the recurrent state: the next action starts a new episode."""
+        self._state = None
+        self._episode_start = True
+
+    def act(self, observation: Any, view: Any = None) -> Any:
+        if getattr(view, "step", None) == 0:
+            self.reset()
+        if self.recurrent:
+            action, self._state = self.model.predict(
+                observation,
+                state=self._state,
+                episode_start=np.array([self._episode_start]),
+                deterministic=self.deterministic,
+            )
+            self._episode_start = False
+        else:
+            action, _ = self.model.predict(observation, deterministic=self.deterministic)
+        space = self.action_space
+        if isinstance(space, spaces.Discrete):
+            return int(np.asarray(action).reshape(-1)[0])
+        return np.asarray(action, dtype=space.dtype).reshape(space.shape)

@@ -1,0 +1,192 @@
+"""``python train.py`` end to end (a subprocess smoke test), DQN and SAC runs, argument
+errors, and ``SB3Agent`` on saved models."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import active_loc  # noqa: F401  (registers the env ids)
+from active_loc.agents.sb3 import SB3Agent
+from active_loc.train import TrainArgs, TrainConfigError, main, train
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: tiny runs: no progress bar, small networks, an evaluation and a checkpoint within budget
+TINY = {"n_envs": 2, "eval_freq": 64, "eval_episodes": 2, "checkpoint_freq": 64,
+        "progress_bar": False, "net_arch": (16,)}
+
+
+@pytest.fixture(scope="module")
+def maze_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+    out = tmp_path_factory.mktemp("maze") / "run"
+    command = [
+        sys.executable, "train.py", "--env", "ActiveLoc/Maze-v0", "--total-steps", "256",
+        "--n-envs", "2", "--n-steps", "64", "--eval-freq", "128", "--eval-episodes", "3",
+        "--checkpoint-freq", "128", "--out", str(out),
+    ]
+    result = subprocess.run(
+        command, cwd=ROOT, capture_output=True, text=True, timeout=600, check=False
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    return out, result.stdout
+
+
+def test_train_py_smoke_run_writes_the_output_folder(maze_run: tuple[Path, str]) -> None:
+    out, stdout = maze_run
+    for name in ("model.zip", "config.json", "learning_curve.png", "eval/evaluations.npz",
+                 "eval/best_model.zip", "eval/0.monitor.csv", "monitor/0.monitor.csv"):
+        assert (out / name).is_file(), name
+    assert list((out / "checkpoints").glob("model_*_steps.zip"))
+    assert list((out / "tb").glob("*/events.out.tfevents.*"))
+    config = json.loads((out / "config.json").read_text())
+    assert config["args"]["env"] == "ActiveLoc/Maze-v0"
+    assert config["args"]["total_steps"] == 256
+    assert config["resolved"]["policy"] == "CnnPolicy"
+    assert config["resolved"]["policy_kwargs"]["features_extractor_class"].endswith("SmallCNN")
+    assert config["resolved"]["info_keywords"][:2] == ["is_success", "entropy"]
+    assert "stable-baselines3" in config["versions"]
+    assert config["result"]["timesteps"] >= 256
+    assert config["result"]["eval"]["evaluations"] == 2
+    # custom metrics reach the Monitor CSVs
+    header = (out / "monitor" / "0.monitor.csv").read_text().splitlines()[1].split(",")
+    assert {"is_success", "entropy", "pose_error", "collisions"} <= set(header)
+    with np.load(out / "eval" / "evaluations.npz") as data:
+        assert data["successes"].shape == (2, 3)
+    assert "model: " in stdout and "last success rate" in stdout
+
+
+def test_smoke_run_logs_success_rate_and_info_keys_to_tensorboard(
+    maze_run: tuple[Path, str],
+) -> None:
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    events = next((maze_run[0] / "tb").glob("*/events.out.tfevents.*"))
+    accumulator = EventAccumulator(str(events))
+    accumulator.Reload()
+    tags = set(accumulator.Tags()["scalars"])
+    expected = {"eval/success_rate", "eval/entropy", "rollout/success_rate", "rollout/entropy",
+                "rollout/pose_error"}
+    assert expected <= tags
+
+
+def test_sb3_agent_acts_with_the_saved_maze_model(maze_run: tuple[Path, str]) -> None:
+    agent = SB3Agent.load(maze_run[0])  # the run folder; config.json names PPO
+    assert type(agent.model).__name__ == "PPO"
+    env = gym.make("ActiveLoc/Maze-v0")
+    obs, _ = env.reset(seed=3)
+    for _ in range(5):
+        action = agent.act(obs, env.unwrapped.planner_view())
+        assert isinstance(action, int) and env.action_space.contains(action)
+        obs, *_ = env.step(action)
+    env.close()
+    # a checkpoint finds the config one folder up; the same weights act the same
+    checkpoint = sorted((maze_run[0] / "checkpoints").glob("*.zip"))[-1]
+    assert type(SB3Agent.load(checkpoint).model).__name__ == "PPO"
+
+
+def test_dqn_run_on_a_discrete_localization_id(tmp_path: Path) -> None:
+    args = TrainArgs(env="ActiveLoc/LandmarkEKF-v0", algo="dqn", total_steps=128,
+                     learning_starts=32, batch_size=16, out=tmp_path, **TINY)
+    out = train(args)
+    config = json.loads((out / "config.json").read_text())
+    assert config["resolved"]["env_kwargs"] == {"action_type": "discrete"}
+    assert config["resolved"]["policy"] == "MlpPolicy"
+    agent = SB3Agent.load(out / "model.zip")
+    env = gym.make("ActiveLoc/LandmarkEKF-v0", action_type="discrete")
+    obs, _ = env.reset(seed=0)
+    action = agent.act(obs, env.unwrapped.planner_view())
+    assert isinstance(action, int) and env.action_space.contains(action)
+    env.close()
+
+
+def test_sac_run_on_continuous_landmark_ekf(tmp_path: Path) -> None:
+    args = TrainArgs(env="ActiveLoc/LandmarkEKF-v0", algo="sac", total_steps=128,
+                     learning_starts=32, batch_size=16, buffer_size=1000, out=tmp_path,
+                     **TINY)
+    out = train(args)
+    assert (out / "model.zip").is_file() and (out / "learning_curve.png").is_file()
+    agent = SB3Agent.load(out)
+    assert type(agent.model).__name__ == "SAC"
+    env = gym.make("ActiveLoc/LandmarkEKF-v0")  # continuous by default
+    obs, _ = env.reset(seed=0)
+    action = agent.act(obs, env.unwrapped.planner_view())
+    assert action.shape == (2,) and env.action_space.contains(action)
+    env.close()
+
+
+def test_dqn_with_continuous_actions_is_a_clear_error(tmp_path: Path) -> None:
+    args = TrainArgs(env="ActiveLoc/LandmarkEKF-v0", algo="dqn", out=tmp_path,
+                     env_kwargs='{"action_type": "continuous"}')
+    with pytest.raises(TrainConfigError, match=r"DQN \(dqn\) needs a Discrete action space.*Box"):
+        train(args)
+    assert not (tmp_path / "config.json").exists()
+
+
+def test_sac_on_the_discrete_maze_is_a_clear_error_on_the_command_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--env", "ActiveLoc/Maze-v0", "--algo", "sac", "--out", str(tmp_path)])
+    assert exit_info.value.code == 2
+    message = capsys.readouterr().err
+    assert "SAC (sac) needs a Box action space" in message
+    assert "Discrete(3)" in message and "discrete actions only" in message
+
+
+@pytest.mark.parametrize(
+    ("overrides", "match"),
+    [
+        ({"algo": "dqn", "n_steps": 64}, "DQN has no hyperparameter 'n_steps'"),
+        ({"env_kwargs": "[1, 2]"}, "env_kwargs must be a JSON object"),
+        ({"env_kwargs": '{"size": 8}'}, "size must be one of"),
+        ({"env": "ActiveLoc/Nope-v0"}, "unknown env id"),
+        ({"env": "ActiveLoc/LandmarkEKF-v0", "policy": "cnn"}, "policy 'cnn' needs an image"),
+        ({"total_steps": 0}, "total_steps must be >= 1"),
+    ],
+)
+def test_bad_arguments_raise_clear_errors(
+    tmp_path: Path, overrides: dict[str, object], match: str
+) -> None:
+    with pytest.raises(TrainConfigError, match=match):
+        train(TrainArgs(out=tmp_path, **overrides))  # type: ignore[arg-type]
+
+
+def test_sb3_agent_carries_the_lstm_state_and_resets_it_on_a_new_episode() -> None:
+    from sb3_contrib import RecurrentPPO
+
+    env = gym.make("ActiveLoc/LandmarkEKF-v0")
+    model = RecurrentPPO("MlpLstmPolicy", env, n_steps=8, batch_size=8, seed=0, device="cpu",
+                         policy_kwargs={"lstm_hidden_size": 8, "net_arch": [8]})
+    agent = SB3Agent(model, deterministic=True)
+    assert agent.recurrent
+    obs, _ = env.reset(seed=1)
+    first = agent.act(obs, env.unwrapped.planner_view())
+    assert first.shape == (2,) and env.action_space.contains(first)
+    state_after_first = [s.copy() for s in agent._state]
+    obs, *_ = env.step(first)
+    agent.act(obs, env.unwrapped.planner_view())
+    assert any(not np.array_equal(a, b) for a, b in zip(state_after_first, agent._state,
+                                                         strict=True))
+    obs, _ = env.reset(seed=1)  # view.step == 0: a new episode, the state starts afresh
+    again = agent.act(obs, env.unwrapped.planner_view())
+    np.testing.assert_array_equal(again, first)
+    for a, b in zip(state_after_first, agent._state, strict=True):
+        np.testing.assert_array_equal(a, b)
+    env.close()
+
+
+def test_active_loc_train_forwards_to_the_training_cli(capsys: pytest.CaptureFixture[str]) -> None:
+    from active_loc.cli import main as cli_main
+
+    with pytest.raises(SystemExit) as exit_info:
+        cli_main(["train", "--help"])
+    assert exit_info.value.code == 0
+    text = capsys.readouterr().out
+    assert "active-loc train" in text and "--total-steps" in text and "--algo" in text

@@ -1,8 +1,12 @@
-"""The ``active-loc`` command: ``active-loc demo|render|envs``.
+"""The ``active-loc`` command: ``active-loc train|demo|render|evaluate|envs``.
 
+* ``train``: train a stable-baselines3 agent (:mod:`active_loc.train`, the same as
+  ``python train.py``; options after ``train`` go to it).
 * ``demo``: train PPO on LandmarkEKF-v0 and compare it with a random policy
   (:mod:`active_loc.demo`; options after ``demo`` go to it).
 * ``render``: run one episode with an agent and write it as a GIF or MP4.
+* ``evaluate``: run agents on the same seeded episodes; metrics table, CSV, JSON, plots
+  (:mod:`active_loc.evaluation`).
 * ``envs``: list the registered env ids.
 """
 
@@ -46,6 +50,57 @@ def render_episode(env_id: str, agent_name: str, out: Path, seed: int, fps: int)
     return 0
 
 
+def _fail(message: str) -> int:
+    print(f"active-loc evaluate: error: {message}", file=sys.stderr)
+    return 2
+
+
+def evaluate_command(args: argparse.Namespace) -> int:
+    """``active-loc evaluate``: run the agents, write ``results.csv``, ``summary.json``,
+    ``summary.md``, the plots and (``--gif``) one GIF per agent into ``--out``."""
+    import json
+
+    from active_loc.agents import make_agent
+    from active_loc.evaluation import evaluate, summarize, write_results
+    from active_loc.evaluation_plots import write_gifs, write_plots
+
+    try:
+        env_kwargs = json.loads(args.env_kwargs)
+    except json.JSONDecodeError as exc:
+        return _fail(f"--env-kwargs is not valid JSON: {exc}")
+    if not isinstance(env_kwargs, dict):
+        return _fail(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
+    specs = [spec.strip() for spec in args.agents.split(",") if spec.strip()]
+    if not specs:
+        return _fail("--agents names no agent")
+    if len(set(specs)) != len(specs):
+        return _fail(f"--agents names an agent twice: {args.agents!r}")
+    if args.episodes < 1:
+        return _fail(f"--episodes must be >= 1, got {args.episodes}")
+
+    def make_agents() -> dict[str, object]:
+        env = gym.make(args.env, **env_kwargs)
+        try:
+            return {spec: make_agent(spec, env, args.seed) for spec in specs}
+        finally:
+            env.close()
+
+    try:
+        agents = make_agents()
+    except (ValueError, TypeError, OSError, ImportError, gym.error.Error) as exc:
+        return _fail(str(exc))
+    records = evaluate(args.env, env_kwargs, agents, args.episodes, args.seed, progress=True)
+    summary = summarize(records)
+    files = write_results(records, summary, args.out)
+    written = [*files.values(), *write_plots(records, args.out)]
+    if args.gif:
+        written += write_gifs(args.env, env_kwargs, make_agents(), args.seed, args.out)
+    print(files["md"].read_text(encoding="utf-8"))
+    for path in written:
+        print(f"wrote {path}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] == ["demo"]:
@@ -53,8 +108,14 @@ def main(argv: list[str] | None = None) -> int:
 
         demo_main(argv[1:])
         return 0
+    if argv[:1] == ["train"]:
+        from active_loc.train import main as train_main
+
+        train_main(argv[1:], prog="active-loc train")
+        return 0
     parser = argparse.ArgumentParser(prog="active-loc", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
+    sub.add_parser("train", help="train a stable-baselines3 agent (active-loc train --help)")
     sub.add_parser("demo", help="train PPO on LandmarkEKF-v0 and compare with random")
     sub.add_parser("envs", help="list the registered env ids")
     render = sub.add_parser("render", help="write one episode as a GIF or MP4")
@@ -63,11 +124,25 @@ def main(argv: list[str] | None = None) -> int:
     render.add_argument("--out", type=Path, default=Path("reports/episode.gif"))
     render.add_argument("--seed", type=int, default=0)
     render.add_argument("--fps", type=int, default=10)
+    evaluate = sub.add_parser(
+        "evaluate", help="run agents on the same seeded episodes: CSV, JSON, Markdown, plots"
+    )
+    evaluate.add_argument("--env", required=True, help="env id, e.g. ActiveLoc/LandmarkEKF-v0")
+    evaluate.add_argument("--env-kwargs", default="{}",
+                          help="JSON object of gymnasium.make keyword arguments")
+    evaluate.add_argument("--agents", required=True,
+                          help="comma-separated: random,passive,greedy,horizon,sb3:PATH,...")
+    evaluate.add_argument("--episodes", type=int, default=100, help="episodes per agent")
+    evaluate.add_argument("--seed", type=int, default=0, help="episode i is reset with seed + i")
+    evaluate.add_argument("--out", type=Path, default=Path("reports/eval"))
+    evaluate.add_argument("--gif", action="store_true", help="add one rendered episode per agent")
     args = parser.parse_args(argv)
     if args.command == "envs":
         for env_id, scenario, max_steps in active_loc.ENV_IDS:
             print(f"{env_id:<28} scenario={scenario:<18} max_episode_steps={max_steps}")
         return 0
+    if args.command == "evaluate":
+        return evaluate_command(args)
     return render_episode(args.env, args.agent, args.out, args.seed, args.fps)
 
 

@@ -34,9 +34,9 @@ kernels compiled or loaded from the cache, estimates recorded for the RMSE colum
 figure is the best of at least ``--repeats`` timings, more until they add up to a second.
 CartPole-v1 is measured in the same run with ``bench_steps.steps_per_second`` (random
 actions pre-drawn, through ``gymnasium.make``). For context the env ids
-``ActiveLoc/LandmarkMCL-v0`` (2000 particles, augmented) and ``ActiveLoc/GridMCL-v0`` (KLD
-sampling between 500 and 50000 particles, so the count is reported) are timed per step the
-same way. Targets are printed next to the figures; this script measures and asserts nothing.
+``ActiveLoc/LandmarkMCL-v0``, ``ActiveLoc/GridMCL-v0`` and ``ActiveLoc/GridMCLDynamic-v0``
+(KLD sampling, so the particle count is reported) are timed per step the same way.
+Targets are printed next to the figures; this script measures and asserts nothing.
 
     python benchmarks/bench_mcl.py [--repeats 5] [--json out.json]
 """
@@ -740,7 +740,8 @@ def main() -> None:
     print(f"\nfor context, whole env steps through gymnasium.make ({args.env_steps} steps per "
           f"timing, random actions, resets timed):")
     print(f"{'env':<44} {'steps/s':>9} {'x CartPole':>10} {'ms/step':>8}  particles")
-    for env_id in ("ActiveLoc/LandmarkMCL-v0", "ActiveLoc/GridMCL-v0"):
+    for env_id in ("ActiveLoc/LandmarkMCL-v0", "ActiveLoc/GridMCL-v0",
+                   "ActiveLoc/GridMCLDynamic-v0"):
         rate, counts, episodes = env_steps_per_second(env_id, args.env_steps, args.repeats)
         if counts.min() == counts.max():
             particles = f"{counts[0]} fixed"

@@ -7,6 +7,7 @@ the best of ``--repeats`` timings to damp noise from other processes. It measure
 nothing.
 
     python benchmarks/bench_steps.py [--steps 50000] [--repeats 3] [--json out.json]
+                                     [--only GridMarkov]
 """
 
 from __future__ import annotations
@@ -70,6 +71,10 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=50_000)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--json", default=None, help="also write the figures to this file")
+    parser.add_argument(
+        "--only", default=None,
+        help="time only the cases whose label contains this text (CartPole-v1 always runs)",
+    )
     args = parser.parse_args()
 
     cases: list[tuple[str, str, dict[str, object]]] = [("CartPole-v1", "CartPole-v1", {})]
@@ -79,6 +84,8 @@ def main() -> None:
     cases.append(
         ("ActiveLoc/Textbook-v0 filterpy", "ActiveLoc/Textbook-v0", {"ekf_backend": "filterpy"})
     )
+    if args.only:
+        cases = [c for c in cases if c[0] == "CartPole-v1" or args.only in c[0]]
 
     machine = platform.processor() or platform.machine()
     print(f"machine: {machine}, python {platform.python_version()}")
@@ -91,7 +98,7 @@ def main() -> None:
         if label == "CartPole-v1":
             baseline = rate
         results[label] = {"steps_per_second": rate, "ratio_to_cartpole": rate / baseline}
-        print(f"{label:<40} {rate:>10.0f} {rate / baseline:>11.2f}")
+        print(f"{label:<40} {rate:>10.0f} {rate / baseline:>11.4f}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(results, f, indent=2)

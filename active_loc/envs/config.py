@@ -14,8 +14,9 @@ from typing import Any
 import numpy as np
 
 from active_loc.maps import LandmarkMap, OccupancyGrid
+from active_loc.sensors.detections import MAX_CLUTTER_RATE
 
-BELIEFS = ("ekf", "mcl")
+BELIEFS = ("ekf", "mcl", "grid")
 EKF_BACKENDS = ("numba", "filterpy")
 SENSORS = ("range_bearing", "relative_position", "lidar")
 LANDMARK_MAPS = ("random", "textbook")
@@ -61,6 +62,14 @@ class LocalizationConfig:
     fov: float = math.pi / 2  # field of view (rad), centred on the heading; 2*pi = all round
     max_range: float = 6.0  # maximum range (m); inf for unlimited
     known_correspondences: bool = True  # False: identical-looking landmarks (no ids)
+    # identical-looking landmarks with belief="ekf" (active_loc.sensors.detections): the
+    # probability that a landmark in view is not detected, in [0, 1); the mean number of false
+    # detections per scan (Poisson, uniform over the field-of-view area), in [0, 50]; and the
+    # probability of the chi-square validation gate of the data association, in (0, 1]
+    # (None or 1: every measurement is matched to its most likely landmark)
+    miss_probability: float = 0.0
+    clutter_rate: float = 0.0
+    association_gate: float | None = 0.99
     n_beams: int = 60  # lidar: beams evenly spread over the field of view
     lidar_model: str = "likelihood_field"  # the filter's lidar model, or "beam"
     lidar_noise_std: float = 0.03  # lidar: std of a hit reading of the simulated sensor (m)
@@ -75,14 +84,22 @@ class LocalizationConfig:
     # faster steps for ~1 s per new map); 0 ray-casts every particle's beams at every step
     lidar_range_bins: int = 0
     unknown_reflects: bool = True  # whether unknown grid cells stop lidar beams
+    # likelihood field: AMCL's beam skipping, its outlier rejection for unmapped obstacles:
+    # (distance m, threshold, error threshold), AMCL's values (0.5, 0.3, 0.9); None is off
+    lidar_beam_skip: tuple[float, float, float] | None = None
+    # grid maps: people the map does not hold, (count, speed m/s, radius m) of discs walking
+    # between random free points, occluding the lidar and blocking the robot; None for none
+    dynamic_obstacles: tuple[int, float, float] | None = None
 
     # --- belief --------------------------------------------------------------------------
     belief: str = "ekf"
-    ekf_backend: str = "numba"  # "filterpy" runs the reference implementation (single envs)
+    # "filterpy" runs the reference implementation (single envs, known correspondences; with
+    # identical-looking landmarks the EKF always runs the numba kernels of Algorithm 3)
+    ekf_backend: str = "numba"
     initial_error_std: tuple[float, float, float] = (0.5, 0.5, 0.3)  # true - mean at reset
     initial_belief_std: tuple[float, float, float] = (0.5, 0.5, 0.3)  # sqrt diag Sigma_0
     # "gaussian": N(mean, Sigma_0) as above (pose tracking); "uniform": the whole free space,
-    # any heading (global localization; MCL only)
+    # any heading (global localization; MCL and grid only)
     initial_belief: str = "gaussian"
     n_particles: int = 1000  # MCL: particle count (the maximum with KLD sampling)
     resampling: str = "systematic"  # MCL: "systematic" (low variance) or "stratified"
@@ -94,8 +111,13 @@ class LocalizationConfig:
     recovery_alpha_fast: float = 0.1
     kld: bool = False  # MCL: KLD-sampling adaptive particle count
     min_particles: int = 100  # MCL with KLD: the minimum count (AMCL's default)
-    # MCL: the power each scan's likelihood is raised to (see MCLBelief); 1 = the plain filter
+    # MCL and grid: the power each scan's likelihood is raised to (see MCLBelief); 1 = the
+    # plain filter
     likelihood_exponent: float = 1.0
+    # grid (Markov localization, Algorithm 1; grid maps only): the side of the belief's cells
+    # (m), laid over the map from its origin, and the number of heading bins
+    grid_cell_size: float = 0.25
+    grid_headings: int = 36
 
     # --- agent interface -----------------------------------------------------------------
     action_type: str = "continuous"  # "continuous": Box(-1, 1, (2,)); "discrete": primitives
@@ -154,11 +176,36 @@ class LocalizationConfig:
         if self.belief == "ekf" and (self.sensor == "lidar" or self.initial_belief == "uniform"):
             raise ValueError(
                 "belief='ekf' tracks a Gaussian with landmark sensors; lidar and "
-                "initial_belief='uniform' need belief='mcl'"
+                "initial_belief='uniform' need belief='mcl' or 'grid'"
             )
-        if self.belief == "ekf" and not self.known_correspondences:
+        if self.belief == "grid" and not self.uses_grid:
             raise ValueError(
-                "known_correspondences=False (identical-looking landmarks) needs belief='mcl'"
+                f"belief='grid' runs on grid maps: it needs sensor='lidar', got "
+                f"sensor={self.sensor!r}"
+            )
+        _positive("grid_cell_size", self.grid_cell_size)
+        _integer("grid_headings", self.grid_headings, 1)
+        if not (_is_finite_number(self.miss_probability) and 0 <= self.miss_probability < 1):
+            raise ValueError(f"miss_probability must be in [0, 1), got {self.miss_probability!r}")
+        clutter = self.clutter_rate
+        if not (_is_finite_number(clutter) and 0 <= clutter <= MAX_CLUTTER_RATE):
+            raise ValueError(
+                f"clutter_rate must be in [0, {MAX_CLUTTER_RATE}] false detections per scan, "
+                f"got {self.clutter_rate!r}"
+            )
+        if (self.miss_probability > 0 or self.clutter_rate > 0) and (
+            self.belief != "ekf" or self.known_correspondences
+        ):
+            raise ValueError(
+                f"miss_probability={self.miss_probability} and clutter_rate={self.clutter_rate}: "
+                "misses and clutter need belief='ekf' with known_correspondences=False "
+                "(identical-looking landmarks)"
+            )
+        if self.association_gate is not None and not (
+            _is_finite_number(self.association_gate) and 0 < self.association_gate <= 1
+        ):
+            raise ValueError(
+                f"association_gate must be None or in (0, 1], got {self.association_gate!r}"
             )
         for f in fields(self):
             if f.type == "float":
@@ -201,6 +248,28 @@ class LocalizationConfig:
         _positive("lidar_noise_std", self.lidar_noise_std)
         _positive("lidar_lambda_short", self.lidar_lambda_short)
         _integer("lidar_range_bins", self.lidar_range_bins, 0)
+        if self.lidar_beam_skip is not None:
+            skip = tuple(self.lidar_beam_skip)
+            if len(skip) != 3 or not all(_is_finite_number(v) for v in skip) or not (
+                skip[0] > 0 and 0 <= skip[1] <= 1 and 0 <= skip[2] <= 1
+            ):
+                raise ValueError(
+                    f"lidar_beam_skip must be None or (distance m > 0, threshold in [0, 1], "
+                    f"error threshold in [0, 1]), got {self.lidar_beam_skip!r}"
+                )
+        if self.dynamic_obstacles is not None:
+            people = tuple(self.dynamic_obstacles)
+            if len(people) != 3 or isinstance(people[0], bool) or not isinstance(
+                people[0], (int, np.integer)
+            ) or people[0] < 0 or not all(_is_finite_number(v) for v in people[1:]) or not (
+                people[1] >= 0 and people[2] > 0
+            ):
+                raise ValueError(
+                    f"dynamic_obstacles must be None or (count >= 0, speed m/s >= 0, "
+                    f"radius m > 0), got {self.dynamic_obstacles!r}"
+                )
+            if people[0] > 0 and not self.uses_grid:
+                raise ValueError("dynamic_obstacles needs a grid map (sensor='lidar')")
         if 0 < self.lidar_range_bins < 4:
             raise ValueError(f"lidar_range_bins must be 0 (off) or >= 4, got "
                              f"{self.lidar_range_bins}")
@@ -271,6 +340,11 @@ def _positive(name: str, value: float, allow_zero: bool = False) -> None:
     if not ok:
         bound = ">= 0" if allow_zero else "> 0"
         raise ValueError(f"{name} must be a finite number {bound}, got {value}")
+
+
+def _is_finite_number(value: object) -> bool:
+    return (isinstance(value, (int, float, np.integer, np.floating))
+            and not isinstance(value, bool) and math.isfinite(float(value)))
 
 
 def _integer(name: str, value: object, minimum: int) -> None:

@@ -9,7 +9,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from active_loc.envs.actions import action_space
+from active_loc.envs.association_core import A_ACCURACY, AssociationCore
 from active_loc.envs.config import LocalizationConfig
+from active_loc.envs.grid_core import GridCore
 from active_loc.envs.landmark_core import (
     S_COLLIDED,
     S_ENTROPY,
@@ -55,10 +57,11 @@ class ActiveLocalizationEnv(gym.Env):
     A unicycle robot moves with noisy controls in a map it knows: point landmarks, or an
     occupancy grid seen through a lidar. It does not know its own pose exactly: the env keeps
     its belief with a real filter fed by the robot's own sensor (``belief="ekf"``, the
-    chapter's Algorithm 2, on landmark maps; ``belief="mcl"``, Algorithm 4, on landmark maps or
-    grids) and rewards the agent for information gain, the drop in the belief's entropy. The
-    sensor sees only what is inside its field of view and range, so the actions decide what the
-    robot learns.
+    chapter's Algorithm 2, on landmark maps, or Algorithm 3 when the landmarks look identical;
+    ``belief="mcl"``, Algorithm 4, on landmark maps or grids; ``belief="grid"``, Algorithm 1,
+    a histogram over map cells and heading bins, on grids) and rewards the agent for
+    information gain, the drop in the belief's entropy. The sensor sees only what is inside its
+    field of view and range, so the actions decide what the robot learns.
 
     ## Action Space
 
@@ -79,10 +82,11 @@ class ActiveLocalizationEnv(gym.Env):
     ``observation="belief"``: ``Box(-1, 1, (D,), float32)``: the belief mean, heading, log
     standard deviations, correlations and entropy, then per landmark slot its position relative
     to the belief mean and this step's measurement with a visibility flag (layout in
-    :mod:`active_loc.envs.observations`; D = 11 + 6 max_landmarks for the EKF). A particle
-    belief adds an 8 x 8 histogram of its mass over the map, and on grids the scan is the lidar
-    ranges / max_range (:mod:`active_loc.envs.particle_core`). Built from the belief and the
-    sensor, never from the true pose.
+    :mod:`active_loc.envs.observations`; D = 11 + 6 max_landmarks for the EKF). A particle or
+    grid belief adds an 8 x 8 histogram of its mass over the map, and on grids the scan is the
+    lidar ranges / max_range (:mod:`active_loc.envs.particle_core`,
+    :mod:`active_loc.envs.grid_core`). Built from the belief and the sensor, never from the
+    true pose.
 
     ## Rewards
 
@@ -94,7 +98,7 @@ class ActiveLocalizationEnv(gym.Env):
 
     Random map (or the scenario's), true pose uniform in the free space with any heading (or
     fixed). ``initial_belief="gaussian"``: mean = true pose + N(0, diag(initial_error_std^2)),
-    covariance diag(initial_belief_std^2); ``"uniform"`` (MCL): the whole free space. No
+    covariance diag(initial_belief_std^2); ``"uniform"`` (MCL, grid): the whole free space. No
     measurement has been taken at reset. With ``kidnap=True`` the robot is moved once, unseen
     by the filter, at a step drawn in ``kidnap_window`` x ``horizon``.
 
@@ -111,8 +115,12 @@ class ActiveLocalizationEnv(gym.Env):
     ``localized`` (confident), ``is_success`` (confident and within ``success_position_tol``
     and ``success_heading_tol`` of the truth), ``collisions`` (this episode so far),
     ``reward_terms``, ``n_visible``, ``nis`` (normalized innovation squared of the EKF update),
-    ``kidnapped`` (the robot was kidnapped this step). Errors use the true pose: they are for
-    evaluation, never seen by the agent; with a kidnapping, success also needs it to be past.
+    ``kidnapped`` (the robot was kidnapped this step), ``association_accuracy`` (with
+    identical-looking landmarks and ``belief="ekf"``: the fraction of this step's detections
+    the data association assigned correctly, clutter counting as correct when left unmatched;
+    1.0 on a step without detections and with known correspondences). Errors and the
+    association accuracy use the truth: they are for evaluation, never seen by the agent; with
+    a kidnapping, success also needs it to be past.
 
     ## Arguments
 
@@ -143,8 +151,12 @@ class ActiveLocalizationEnv(gym.Env):
         self.config = LocalizationConfig(**{**scenario_kwargs(scenario), **kwargs})
         self.render_mode = render_mode
         self.core: LandmarkCore | ParticleCore
-        if self.config.belief == "mcl":
+        if self.config.belief == "grid":
+            self.core = GridCore(self.config)  # Markov localization on grid cells: Algorithm 1
+        elif self.config.belief == "mcl":
             self.core = ParticleCore(self.config)
+        elif not self.config.known_correspondences:
+            self.core = AssociationCore(self.config)  # identical-looking landmarks: Algorithm 3
         else:
             self.core = LandmarkCore(self.config, batch_size=1)
         self.action_space = action_space(self.config.action_type)
@@ -251,6 +263,8 @@ class ActiveLocalizationEnv(gym.Env):
             limits=self.core.models.limits,
             step=self._steps,
             known_correspondences=self.config.known_correspondences,
+            association_gate=self.config.association_gate,
+            likelihood_exponent=self.config.likelihood_exponent,
         )
 
     # -- helpers ----------------------------------------------------------------------------
@@ -295,7 +309,16 @@ class ActiveLocalizationEnv(gym.Env):
             "n_visible": int(row[_N_VISIBLE]),
             "nis": row[_NIS],
             "kidnapped": row[_KIDNAPPED] > 0.5,
+            "association_accuracy": self._association_accuracy(),
         }
+
+    def _association_accuracy(self) -> float:
+        """This step's data-association accuracy against the true correspondences; 1.0 when
+        the filter is given the correspondences (or associates per particle, MCL)."""
+        core = self.core
+        if isinstance(core, AssociationCore):
+            return float(core.association[0, A_ACCURACY])
+        return 1.0
 
     def _frame(self) -> Any:
         """What the renderer draws this step (truth included: rendering is for people)."""
@@ -305,8 +328,11 @@ class ActiveLocalizationEnv(gym.Env):
         lmap = core.maps[0]
         assert lmap is not None
         row = core.state[0]
-        particles = weights = None
-        if isinstance(core, ParticleCore):
+        particles = weights = belief_map = None
+        if isinstance(core, GridCore):
+            assert core.belief is not None
+            belief_map = core.belief.marginal_xy()[0]
+        elif isinstance(core, ParticleCore):
             assert core.belief is not None
             particles, weights = core.belief.particles.copy(), core.belief.weights.copy()
         common = {
@@ -325,7 +351,11 @@ class ActiveLocalizationEnv(gym.Env):
             assert isinstance(core, ParticleCore) and core.lidar is not None
             return GridFrame(
                 grid=lmap, beam_angles=core.lidar.beam_angles, ranges=core.ranges[0].copy(),
-                max_range=core.lidar.max_range, kidnapped=bool(row[_KIDNAPPED] > 0.5), **common,
+                max_range=core.lidar.max_range, kidnapped=bool(row[_KIDNAPPED] > 0.5),
+                people=None if core.crowd is None else core.crowd.discs.copy(),
+                belief_map=belief_map,
+                belief_cell_size=core.config.grid_cell_size if belief_map is not None else 0.0,
+                **common,
             )
         n = lmap.n_landmarks
         return LandmarkFrame(

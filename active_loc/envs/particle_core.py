@@ -28,6 +28,7 @@ from active_loc.beliefs.mcl import FreeSpace, MCLBelief
 from active_loc.beliefs.particle_stats import ENTROPY_BINS
 from active_loc.envs.actions import ControlLimits
 from active_loc.envs.config import LocalizationConfig
+from active_loc.envs.crowd import Crowd
 from active_loc.envs.landmark_core import (
     B_COUNT,
     B_WALLS,
@@ -105,10 +106,14 @@ class ParticleCore(StateViews):
     """
 
     batch_size = 1
+    #: the ``belief`` config value this core runs
+    belief_name = "mcl"
 
     def __init__(self, config: LocalizationConfig) -> None:
-        if config.belief != "mcl":
-            raise ValueError(f"ParticleCore runs belief='mcl', got {config.belief!r}")
+        if config.belief != self.belief_name:
+            raise ValueError(
+                f"{type(self).__name__} runs belief={self.belief_name!r}, got {config.belief!r}"
+            )
         self.config = config
         self.grid_mode = config.uses_grid
         if self.grid_mode:
@@ -141,6 +146,7 @@ class ParticleCore(StateViews):
         self._distance: NDArray[np.float64] | None = None
         self._log_table: NDArray[np.float64] | None = None  # likelihood field, per cell
         self._range_table: RangeTable | None = None  # beam model, precomputed casts
+        self.crowd: Crowd | None = None  # people the map does not hold
         self.t = 0
         self.kidnap_step = -1
         self.kidnapped = False  # the kidnapping of this episode has happened
@@ -166,21 +172,13 @@ class ParticleCore(StateViews):
             row[X_POSE : X_POSE + 3] = cfg.start_pose
         else:
             row[X_POSE : X_POSE + 3] = self._random_free_pose(rng)
-        assert self._free is not None
-        self.belief = MCLBelief(
-            self._free, self.models.motion, cfg.n_particles, resampling=cfg.resampling,
-            resample_threshold=cfg.resample_threshold, augmented=cfg.augmented,
-            alpha_slow=cfg.recovery_alpha_slow, alpha_fast=cfg.recovery_alpha_fast, kld=cfg.kld,
-            min_particles=min(cfg.min_particles, cfg.n_particles),
-            likelihood_exponent=cfg.likelihood_exponent,
-        )
-        if cfg.initial_belief == "uniform":
-            self.belief.initialize_uniform(rng)
-        else:
-            mean = row[X_POSE : X_POSE + 3] + rng.standard_normal(3) * cfg.initial_error_std
-            mean[2] = wrap_angle(mean[2])
-            cov = np.diag(np.square(cfg.initial_belief_std))
-            self.belief.initialize_gaussian(mean, cov, rng)
+        self.crowd = None
+        people = cfg.dynamic_obstacles
+        if people is not None and people[0] > 0:
+            assert isinstance(lmap, OccupancyGrid)
+            self.crowd = Crowd.spawn(lmap, int(people[0]), float(people[1]), float(people[2]),
+                                     row[X_POSE : X_POSE + 2], rng)
+        self._init_belief(rng)
         self.t = 0
         self.kidnapped = False
         self.kidnap_step = -1
@@ -192,6 +190,34 @@ class ParticleCore(StateViews):
         self.visible[:] = False
         self.ranges[:] = 0.0
         self._finish(collided=False, kidnapped_now=False, first=True)
+
+    def _init_belief(self, rng: np.random.Generator) -> None:
+        """The episode's initial belief: uniform, or Gaussian around the true start plus
+        ``initial_error_std`` noise."""
+        cfg = self.config
+        assert self._free is not None
+        self.belief = MCLBelief(
+            self._free, self.models.motion, cfg.n_particles, resampling=cfg.resampling,
+            resample_threshold=cfg.resample_threshold, augmented=cfg.augmented,
+            alpha_slow=cfg.recovery_alpha_slow, alpha_fast=cfg.recovery_alpha_fast, kld=cfg.kld,
+            min_particles=min(cfg.min_particles, cfg.n_particles),
+            likelihood_exponent=cfg.likelihood_exponent,
+        )
+        if cfg.initial_belief == "uniform":
+            self.belief.initialize_uniform(rng)
+        else:
+            mean, cov = self._initial_gaussian(rng)
+            self.belief.initialize_gaussian(mean, cov, rng)
+
+    def _initial_gaussian(
+        self, rng: np.random.Generator
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Mean ``(3,)`` (the true start plus ``initial_error_std`` noise) and covariance
+        ``(3, 3)`` of a Gaussian initial belief."""
+        cfg = self.config
+        mean = self.state[0, X_POSE : X_POSE + 3] + rng.standard_normal(3) * cfg.initial_error_std
+        mean[2] = wrap_angle(mean[2])
+        return mean, np.diag(np.square(cfg.initial_belief_std))
 
     def _fixed_map(self) -> LandmarkMap | OccupancyGrid | None:
         cfg = self.config
@@ -271,24 +297,24 @@ class ParticleCore(StateViews):
             self.state[0, X_POSE : X_POSE + 3] = self._random_free_pose(rng)
             self.kidnapped = True
         collided = self._move_truth(v, omega, rng)
+        if self.crowd is not None:
+            assert isinstance(self.maps[0], OccupancyGrid)
+            self.crowd.step(self.maps[0], self.config.dt, self.state[0, X_POSE : X_POSE + 2], rng)
+        # a blocked robot did not move: the filter predicts with V = 0
+        self._filter_step(0.0 if collided else v, omega, rng)
+        self._finish(collided, kidnapped_now, first=False)
+        return -1
+
+    def _filter_step(self, v: float, omega: float, rng: np.random.Generator) -> None:
+        """Predict with the control, take the scan from the true pose and correct."""
         belief = self.belief
         assert belief is not None
-        belief.predict(np.array([0.0 if collided else v, omega]), rng)
+        belief.predict(np.array([v, omega]), rng)
         pose = self.state[0, X_POSE : X_POSE + 3]
         lmap = self.maps[0]
         if isinstance(lmap, OccupancyGrid):
-            assert self.lidar is not None and self.true_lidar is not None
-            ranges = self.true_lidar.measure(pose, self._grid_arrays, rng)
-            self.ranges[0] = ranges
-            if self._log_table is not None:
-                log_lik = self.lidar.field_log_likelihood(
-                    ranges, belief.particles, self._grid_arrays, self._log_table
-                )
-            elif self._range_table is not None:
-                log_lik = self._range_table.log_likelihood(ranges, belief.particles)
-            else:
-                log_lik = self.lidar.log_likelihood(ranges, belief.particles, self._grid_arrays)
-            belief.update(log_lik, rng)
+            ranges = self._scan(rng)
+            belief.update(self._scan_log_likelihood(ranges, belief.particles), rng)
         else:
             assert lmap is not None
             sensor = self.models.sensor
@@ -300,8 +326,32 @@ class ParticleCore(StateViews):
                 z, visible, lmap.positions, sensor, rng,
                 known_correspondence=self.config.known_correspondences,
             )
-        self._finish(collided, kidnapped_now, first=False)
-        return -1
+
+    def _scan(self, rng: np.random.Generator) -> NDArray[np.float64]:
+        """The lidar scan ``(M,)`` (m) from the true pose (people occlude), kept in
+        :attr:`ranges`."""
+        assert self.true_lidar is not None
+        pose = self.state[0, X_POSE : X_POSE + 3]
+        discs = self.crowd.discs if self.crowd is not None else None
+        ranges = self.true_lidar.measure(pose, self._grid_arrays, rng, discs)
+        self.ranges[0] = ranges
+        return ranges
+
+    def _scan_log_likelihood(
+        self, ranges: NDArray[np.float64], poses: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """The filter's lidar log-likelihood ``(K,)`` of a scan at poses ``(K, 3)``: the
+        likelihood field from its per-cell table, the beam model from the range table, or the
+        beam model ray-casting every pose."""
+        assert self.lidar is not None
+        if self._log_table is not None:
+            return self.lidar.field_log_likelihood(
+                ranges, poses, self._grid_arrays, self._log_table,
+                beam_skip=self.config.lidar_beam_skip, distance_field=self._distance,
+            )
+        if self._range_table is not None:
+            return self._range_table.log_likelihood(ranges, poses)
+        return self.lidar.log_likelihood(ranges, poses, self._grid_arrays)
 
     def _move_truth(self, v: float, omega: float, rng: np.random.Generator) -> bool:
         """Move the true robot with noise; returns whether walls blocked the translation."""
@@ -328,6 +378,8 @@ class ParticleCore(StateViews):
         target = np.array([pose[0] + dx, pose[1] + dy])
         if free_run < distance or not lmap.is_free(target):
             return True
+        if self.crowd is not None and self.crowd.blocks(target):
+            return True
         pose[0], pose[1] = target
         return False
 
@@ -335,19 +387,11 @@ class ParticleCore(StateViews):
 
     def _finish(self, collided: bool, kidnapped_now: bool, first: bool) -> None:
         cfg = self.config
-        belief = self.belief
-        assert belief is not None
         row = self.state[0]
         stats = row[X_STATS : X_STATS + N_STATS]
-        mean = belief.mean()
-        cov = belief.covariance()
+        mean, cov, entropy, logdet = self._belief_summary()
         row[X_MEAN : X_MEAN + 3] = mean
         row[X_COV : X_COV + 9] = cov.ravel()
-        entropy = belief.entropy()
-        # a particle set stands for a density at the resolution of the entropy bins, so its log
-        # det adds a bin's own variance (d^2 / 12): finite even when every particle coincides
-        sign, logdet = np.linalg.slogdet(cov + self._bin_variance)
-        logdet = float(logdet) if sign > 0 else -np.inf
         trace = float(np.trace(cov))
         stats[S_UNCERTAINTY_REWARD] = 0.0 if first else uncertainty_reward(
             REWARD_CODES[cfg.reward], stats[S_ENTROPY], entropy, stats[S_LOGDET], logdet,
@@ -382,21 +426,24 @@ class ParticleCore(StateViews):
         stats[S_N_VISIBLE] = float(self.visible[0].sum()) if not self.grid_mode else 0.0
         self._write_observation(mean, cov, entropy)
 
+    def _belief_summary(self) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float]:
+        """The belief's mean ``(3,)``, covariance ``(3, 3)``, entropy (nats) and log det."""
+        belief = self.belief
+        assert belief is not None
+        cov = belief.covariance()
+        # a particle set stands for a density at the resolution of the entropy bins, so its log
+        # det adds a bin's own variance (d^2 / 12): finite even when every particle coincides
+        sign, logdet = np.linalg.slogdet(cov + self._bin_variance)
+        return belief.mean(), cov, belief.entropy(), float(logdet) if sign > 0 else -np.inf
+
     def _write_observation(self, mean: NDArray, cov: NDArray, entropy: float) -> None:
         out = self.obs[0]
         row = self.state[0]
         bounds = row[X_BOX : X_BOX + 4]
         write_belief_header(mean, cov, entropy, bounds, out)
-        # where the particle mass is, on a coarse grid over the map
-        belief = self.belief
-        assert belief is not None
-        particles, weights = belief.particles, belief.weights
+        # where the belief's mass is, on a coarse grid over the map
         cells = HISTOGRAM_CELLS
-        fx = (particles[:, 0] - bounds[0]) / (bounds[2] - bounds[0])
-        fy = (particles[:, 1] - bounds[1]) / (bounds[3] - bounds[1])
-        ix = np.clip((fx * cells).astype(np.int64), 0, cells - 1)
-        iy = np.clip((fy * cells).astype(np.int64), 0, cells - 1)
-        hist = np.bincount(iy * cells + ix, weights=weights, minlength=cells * cells)
+        hist = self._mass_histogram(bounds)
         start = BELIEF_HEADER
         out[start : start + cells * cells] = np.clip(hist, 0.0, 1.0)
         start += cells * cells
@@ -411,3 +458,23 @@ class ParticleCore(StateViews):
                 self.models.sensor.kind, float(self.models.params[P_SCALE]), out[start:],
             )
 
+    def _mass_histogram(self, bounds: NDArray) -> NDArray[np.float64]:
+        """``(64,)`` the belief's mass in each cell of an ``8 x 8`` grid over the map box
+        ``bounds`` ``(4,)``, row-major from the bottom-left (index ``iy * 8 + ix``)."""
+        belief = self.belief
+        assert belief is not None
+        return mass_histogram(belief.particles[:, :2], belief.weights, bounds)
+
+
+def mass_histogram(
+    points: NDArray[np.float64], weights: NDArray[np.float64], bounds: NDArray
+) -> NDArray[np.float64]:
+    """``(64,)`` the total weight of points ``(K, 2)`` (m) in each cell of an ``8 x 8`` grid
+    over the box ``bounds`` ``(4,)``, row-major from the bottom-left; points outside fall
+    into the border cells."""
+    cells = HISTOGRAM_CELLS
+    fx = (points[:, 0] - bounds[0]) / (bounds[2] - bounds[0])
+    fy = (points[:, 1] - bounds[1]) / (bounds[3] - bounds[1])
+    ix = np.clip((fx * cells).astype(np.int64), 0, cells - 1)
+    iy = np.clip((fy * cells).astype(np.int64), 0, cells - 1)
+    return np.bincount(iy * cells + ix, weights=weights, minlength=cells * cells)

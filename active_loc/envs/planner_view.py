@@ -8,16 +8,23 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from active_loc.beliefs.association import DEFAULT_GATE, update_with_association
 from active_loc.beliefs.ekf import EKFBelief
 from active_loc.beliefs.ekf_filterpy import FilterpyEKFBelief
+from active_loc.beliefs.grid import GridBelief
 from active_loc.beliefs.mcl import MCLBelief
 from active_loc.envs.actions import ControlLimits
 from active_loc.maps import LandmarkMap, OccupancyGrid
 from active_loc.motion import UnicycleModel
 from active_loc.sensors.landmarks import LandmarkSensor
 from active_loc.sensors.lidar import LidarSensor
+from active_loc.sensors.lidar_lattice import (
+    lattice_field_log_likelihood,
+    off_map_log_probability,
+    padded_table,
+)
 
-AnyBelief = EKFBelief | FilterpyEKFBelief | MCLBelief
+AnyBelief = EKFBelief | FilterpyEKFBelief | MCLBelief | GridBelief
 
 
 @dataclass(frozen=True)
@@ -31,7 +38,12 @@ class PlannerView:
         action_space: the env's action space.
         limits: how actions decode into controls (action type, dt, speed and turn limits).
         step: steps taken so far in the episode.
-        known_correspondences: whether landmark measurements carry the landmark's identity.
+        known_correspondences: whether landmark measurements carry the landmark's identity;
+            without them the EKF associates by maximum likelihood (Algorithm 3).
+        association_gate: the probability of that association's validation gate (None: no
+            gate).
+        likelihood_exponent: the power a grid belief's filter raises a scan's likelihood to
+            (an MCL belief carries its own).
 
     It holds no configuration beyond that: a fixed start pose, for one, is the truth.
     """
@@ -44,6 +56,8 @@ class PlannerView:
     limits: ControlLimits
     step: int
     known_correspondences: bool = True
+    association_gate: float | None = DEFAULT_GATE
+    likelihood_exponent: float = 1.0
 
     def decode(self, action: object) -> NDArray[np.float64]:
         """Physical control (V m/s, omega rad/s) of an env action, as the env decodes it."""
@@ -55,8 +69,12 @@ class PlannerView:
         """One hypothetical step from ``belief``: predict, then a measurement hypothesis.
 
         The pose that generates the hypothetical scan is drawn from the predicted belief
-        (with ``rng``: a Gaussian draw, or a particle picked by weight), not taken from the true
-        pose, which the view does not have.
+        (with ``rng``: a Gaussian draw, a particle picked by weight, or a grid cell's pose
+        picked by its mass), not taken from the true pose, which the view does not have.
+        Without known correspondences the filter treats the hypothetical scan as the env's
+        filter does (an EKF associates it by maximum likelihood, MCL per particle); the
+        hypothesis has neither misses nor clutter. A grid belief is scored at its free cell
+        poses, its likelihood raised to :attr:`likelihood_exponent` as the env's filter does.
 
         Returns:
             The updated copy of the belief, the scan (landmarks ``(N, 2)``, lidar ``(M,)``) and
@@ -64,12 +82,20 @@ class PlannerView:
         """
         out = belief.copy()
         control = self.decode(action)
+        if isinstance(out, GridBelief):
+            z = self._simulate_grid(out, control, rng)
+            return out, z, np.ones(z.shape[0], dtype=np.bool_)
         if not isinstance(out, MCLBelief):
             out.predict(control[None])
             root = np.linalg.cholesky(out.cov[0] + 1e-12 * np.eye(3))
             pose = out.mean[0] + root @ rng.standard_normal(3)
             z, visible = self.sensor.measure(pose, self.map.positions, rng)
-            out.update(z[None], visible[None], self.map.positions)
+            if self.known_correspondences:
+                out.update(z[None], visible[None], self.map.positions)
+            else:
+                assert isinstance(out, EKFBelief)
+                update_with_association(out, z[visible], self.map.positions,
+                                        self.association_gate)
             return out, z, visible
         out.predict(control, rng)
         cumulative = np.cumsum(out.weights)
@@ -89,3 +115,38 @@ class PlannerView:
             known_correspondence=self.known_correspondences,
         )
         return out, z, visible
+
+    def _simulate_grid(
+        self, belief: GridBelief, control: NDArray[np.float64], rng: np.random.Generator
+    ) -> NDArray[np.float64]:
+        """Predict a grid belief with ``control``, scan from a cell pose drawn by its mass,
+        correct (in place); returns the scan ``(M,)``."""
+        assert isinstance(self.map, OccupancyGrid) and isinstance(self.sensor, LidarSensor)
+        noise_std = np.sqrt(np.diag(self.motion.noise_cov))
+        belief.predict_unicycle(float(control[0]), float(control[1]), self.motion.dt, noise_std)
+        poses = belief.cell_poses()  # (X, Y, H, 3)
+        cumulative = np.cumsum(belief.prob[0].reshape(-1))
+        pick = int(np.searchsorted(cumulative, rng.random() * cumulative[-1], side="right"))
+        pose = poses.reshape(-1, 3)[min(pick, cumulative.shape[0] - 1)].copy()
+        arrays = self.map.kernel_arrays()
+        z = self.sensor.measure(pose, arrays, rng)
+        free = belief.free[0]
+        _, nx, ny, nh = belief.shape
+        if self.sensor.model == "likelihood_field" and belief.origin == self.map.origin:
+            # the env's scoring: the field on the lattice of cells laid over the map
+            ratio = belief.cell_size / self.map.resolution
+            table = padded_table(self.sensor.log_table(self.map.distance_field()),
+                                 off_map_log_probability(self.sensor))
+            full = lattice_field_log_likelihood(
+                self.sensor, z, 2.0 * np.pi * np.arange(nh) / nh, (np.arange(nx) + 0.5) * ratio,
+                (np.arange(ny) + 0.5) * ratio, free, self.map.resolution, table,
+            )
+        else:
+            free_poses = poses[free]  # (F, H, 3)
+            log_lik = self.sensor.log_likelihood(
+                z, free_poses.reshape(-1, 3), arrays, self.map.distance_field()
+            )
+            full = np.full((nx, ny, nh), -np.inf)
+            full[free] = log_lik.reshape(free_poses.shape[:2])
+        belief.update_log(self.likelihood_exponent * full)
+        return z

@@ -6,14 +6,26 @@ from gymnasium.envs.registration import register, registry
 
 ENTRY_POINT = "active_loc.envs.localization_env:ActiveLocalizationEnv"
 
-#: (id, scenario, max_episode_steps)
+#: (id, scenario, max_episode_steps) of the ids served by ``ActiveLocalizationEnv``
 ENV_IDS: tuple[tuple[str, str, int], ...] = (
     ("ActiveLoc/Textbook-v0", "textbook", 150),
     ("ActiveLoc/LandmarkEKF-v0", "landmark_tracking", 200),
+    ("ActiveLoc/LandmarkEKFUnknown-v0", "landmark_unknown", 200),
     ("ActiveLoc/LandmarkMCL-v0", "landmark_global", 300),
     ("ActiveLoc/GridMCL-v0", "grid_global", 300),
     ("ActiveLoc/GridMCLKidnapped-v0", "grid_kidnapped", 400),
+    ("ActiveLoc/GridMCLDynamic-v0", "grid_dynamic", 300),
+    ("ActiveLoc/GridMarkov-v0", "grid_markov", 300),
 )
+
+MAZE_ID = "ActiveLoc/Maze-v0"
+MAZE_ENTRY_POINT = "active_loc.envs.maze_env:MazeEnv"
+
+#: (id, entry point, max_episode_steps) of the ids with an env class of their own. Maze-v0
+#: has no TimeLimit: its episode length is the ``episode_length`` kwarg (default by maze
+#: size), and the env truncates after exactly that many steps itself, so a registered limit
+#: could only disagree with it (a fixed 15 would cut the 21 x 21 mazes' 30-step episodes).
+OTHER_ENV_IDS: tuple[tuple[str, str, int | None], ...] = ((MAZE_ID, MAZE_ENTRY_POINT, None),)
 
 
 def register_envs() -> None:
@@ -27,3 +39,7 @@ def register_envs() -> None:
             kwargs={"scenario": scenario},
             max_episode_steps=max_steps,
         )
+    for env_id, entry_point, limit in OTHER_ENV_IDS:
+        if env_id in registry:
+            continue
+        register(id=env_id, entry_point=entry_point, max_episode_steps=limit)

@@ -15,7 +15,9 @@ Two scenes share one drawing core (pose markers, belief, particles, paths, text,
 ``GridRenderer`` draws a :class:`GridFrame` on an occupancy-grid map: the grid (free white,
 occupied black, unknown grey; off the map a pale blue-grey), the lidar scan as beams from the
 TRUE pose (returns solid with a dot at the end point, max-range "no return" readings lighter and
-dashed), the particles, the true pose, the belief (mean, ellipse, heading wedge), both paths,
+dashed), the particles or a grid belief's x-y marginal as a heat map over the map (cells
+shaded light to dark pink and more opaque as their mass approaches the largest cell's; cells
+without mass transparent), the true pose, the belief (mean, ellipse, heading wedge), both paths,
 the step / entropy line, and a red "KIDNAPPED" flag plus a ring around the true pose on the
 frame of a kidnapping.
 
@@ -66,6 +68,8 @@ _BELIEF_COLOR = "tab:blue"
 _RAY_COLOR = "tab:orange"
 _FOV_COLOR = "gold"
 _KIDNAP_COLOR = "tab:red"
+_PEOPLE_COLOR = "tab:purple"  # people and other obstacles the map does not hold
+_HEAT_MAX_ALPHA = 0.8  # opacity of the heat map's heaviest cell (a grid belief's marginal)
 _OFF_MAP_COLOR = "#e3e9f0"  # grid scene: axes background outside the map
 # Grid cell colours (RGB uint8): free white, occupied black, unknown map_saver's grey (205).
 _FREE_RGB, _OCCUPIED_RGB, _UNKNOWN_RGB = (255, 255, 255), (0, 0, 0), (205, 205, 205)
@@ -126,6 +130,11 @@ class GridFrame:
     entropy: float  # nats
     title: str = ""
     kidnapped: bool = False  # the robot was kidnapped (teleported) this step: flagged in red
+    people: NDArray | None = None  # (P, 3) centre x, y and radius (m) of unmapped obstacles
+    # a grid belief's mass per cell, (X, Y) indexed [ix, iy], on cells of belief_cell_size m
+    # laid over the map from its origin (and yaw): drawn as a heat map; None: none drawn
+    belief_map: NDArray | None = None
+    belief_cell_size: float = 0.0
 
 
 _FrameT = TypeVar("_FrameT", LandmarkFrame, GridFrame)
@@ -556,7 +565,7 @@ class _GridScene(_Scene):
 
     def __init__(self, fig: Figure, blit: bool) -> None:
         super().__init__(fig, blit)
-        from matplotlib.collections import LineCollection
+        from matplotlib.collections import LineCollection, PatchCollection
         from matplotlib.lines import Line2D
         from matplotlib.patches import Circle, Polygon
 
@@ -567,6 +576,13 @@ class _GridScene(_Scene):
             np.zeros((1, 1, 3), dtype=np.uint8), origin="lower", extent=(0.0, 1.0, 0.0, 1.0),
             interpolation="antialiased", zorder=0,
         )  # fmt: skip
+        # a grid belief's x-y marginal, RGBA per belief cell, over the map and under the beams
+        self.heat = ax.imshow(
+            np.zeros((1, 1, 4), dtype=np.uint8), origin="lower", extent=(0.0, 1.0, 0.0, 1.0),
+            interpolation="nearest", zorder=1.0,
+        )  # fmt: skip
+        self.heat.set_visible(False)
+        self._heat_legend = False  # whether the legend names the heat map (else particles)
         ax.set_aspect("equal", adjustable="box")  # imshow may have reset it
         ax.set_autoscale_on(False)
         self.outline = Polygon(np.zeros((4, 2)), closed=True, fill=False, ec="black", lw=0.8)
@@ -582,6 +598,9 @@ class _GridScene(_Scene):
             (0, 0), 1, fill=False, ec=_KIDNAP_COLOR, lw=1.8, ls="--", zorder=4.5
         )
         ax.add_patch(self.kidnap_ring)
+        self.people = PatchCollection([], facecolor=_PEOPLE_COLOR, edgecolor="none", alpha=0.8,
+                                      zorder=1.5)
+        ax.add_collection(self.people)
         box = {"boxstyle": "round,pad=0.25", "facecolor": _KIDNAP_COLOR, "ec": "none"}
         self.kidnap_text = ax.text(
             0.985, 0.985, "KIDNAPPED", transform=ax.transAxes, ha="right", va="top", fontsize=9,
@@ -598,9 +617,11 @@ class _GridScene(_Scene):
             (self.true, "true pose"), (self.mean, "belief mean"), (self.ellipse, "95% belief"),
             (self.particle_handle(), "particles"), (beam, "lidar return"),
             (no_return, "no return"), (self.true_path, "true path"),
-            (self.belief_path, "belief path"),
+            (self.belief_path, "belief path"), (self.people, "people (not in the map)"),
         ]  # fmt: skip
-        self._finish(legend, [self.beams, self.hits, self.kidnap_ring, self.kidnap_text])
+        self._finish(legend, [self.beams, self.hits, self.kidnap_ring, self.kidnap_text,
+                              self.people, self.heat])
+        self._particle_entry = 3  # index of the particles' entry in the legend
 
     @staticmethod
     def _rgba(color: str, alpha: float) -> tuple[float, float, float, float]:
@@ -618,9 +639,11 @@ class _GridScene(_Scene):
         self.image.set_data(_grid_rgb(grid))
         self.image.set_extent((ox, ox + width, oy, oy + height))
         if yaw == 0.0:
-            self.image.set_transform(self.ax.transData)
+            transform = self.ax.transData
         else:
-            self.image.set_transform(Affine2D().rotate_around(ox, oy, yaw) + self.ax.transData)
+            transform = Affine2D().rotate_around(ox, oy, yaw) + self.ax.transData
+        self.image.set_transform(transform)
+        self.heat.set_transform(transform)  # the belief's cells are laid over the map's frame
         self.outline.set_xy(_grid_corners(grid))
         self._set_limits(_known_bounds(grid))
         self._invalidate()
@@ -640,9 +663,66 @@ class _GridScene(_Scene):
             self.kidnap_ring.set_center((true_pose[0], true_pose[1]))
             self.kidnap_ring.set_radius(1.4 * self._marker_size())
 
+        self._update_people(frame.people)
+        self._update_heat(frame.belief_map, frame.belief_cell_size)
         n_particles = self._update_particles(frame.particles, frame.weights)
         self._update_belief(frame.mean, frame.cov)
         self._update_paths_and_text(frame, n_particles)
+
+    def _update_heat(self, belief_map: NDArray | None, cell_size: float) -> None:
+        """A grid belief's mass ``(X, Y)`` per cell of ``cell_size`` m as a heat map: colour
+        and opacity grow with the mass relative to the heaviest cell (opacity as its square
+        root, so that a spread-out belief still shows); cells without mass are transparent."""
+        heat = belief_map is not None
+        if heat != self._heat_legend:
+            self._set_heat_legend(heat)
+        if belief_map is None:
+            self.heat.set_visible(False)
+            return
+        mass = np.asarray(belief_map, dtype=np.float64)
+        if mass.ndim != 2 or mass.size == 0:
+            raise ValueError(f"belief_map must have shape (X, Y), got {mass.shape}")
+        cell_size = float(cell_size)
+        if not (math.isfinite(cell_size) and cell_size > 0.0):
+            raise ValueError(f"belief_cell_size must be finite and > 0 (m), got {cell_size}")
+        mass = np.where(np.isfinite(mass) & (mass > 0.0), mass, 0.0)
+        top = float(mass.max())
+        level = mass.T / top if top > 0.0 else mass.T  # (Y, X): image rows are y
+        rgba = self.particle_cmap(level, bytes=True)
+        rgba[..., 3] = np.round(255.0 * _HEAT_MAX_ALPHA * np.sqrt(level)).astype(np.uint8)
+        assert self._grid is not None
+        ox, oy, _ = self._grid.origin
+        nx, ny = mass.shape
+        self.heat.set_data(rgba)
+        self.heat.set_extent((ox, ox + nx * cell_size, oy, oy + ny * cell_size))
+        self.heat.set_visible(True)
+
+    def _set_heat_legend(self, heat: bool) -> None:
+        """Name the heat map (a square) or the particles (a needle) in the legend."""
+        legend = self.fig.legends[0]
+        handle = legend.legend_handles[self._particle_entry]
+        text = legend.get_texts()[self._particle_entry]
+        if heat:
+            text.set_text("belief (grid cells)")
+            handle.set_marker("s")
+            handle.set_markersize(7.0)
+        else:
+            text.set_text("particles")
+            handle.set_marker(self._needles[0])
+            handle.set_markersize(9.0)
+        self._heat_legend = heat
+        self._invalidate()
+
+    def _update_people(self, people: NDArray | None) -> None:
+        """Discs ``(P, 3)`` (x, y, radius) of the obstacles the map does not hold."""
+        from matplotlib.patches import Circle
+
+        if people is None or len(people) == 0:
+            self.people.set_visible(False)
+            return
+        discs = np.asarray(people, dtype=np.float64).reshape(-1, 3)
+        self.people.set_paths([Circle((x, y), r) for x, y, r in discs])
+        self.people.set_visible(True)
 
     def _update_beams(
         self, pose: NDArray | None, beam_angles: NDArray, ranges: NDArray, max_range: float

@@ -19,6 +19,7 @@ import pytest
 
 import active_loc
 from active_loc.beliefs import MCLBelief
+from active_loc.beliefs.grid import GridBelief
 from active_loc.envs import ActiveLocalizationEnv
 from active_loc.envs.landmark_core import S_ENTROPY, S_LOGDET, S_TRACE
 from active_loc.maps import OccupancyGrid
@@ -133,9 +134,12 @@ def uncertainty(env: gym.Env, reward: str, info: dict[str, Any]) -> float:
 
 
 def belief_summary(belief: Any) -> tuple[np.ndarray, ...]:
-    """Copies of the arrays that define a belief (EKF: mean, cov; MCL: particles, weights)."""
+    """Copies of the arrays that define a belief (EKF: mean, cov; MCL: particles, weights;
+    grid: the histogram)."""
     if isinstance(belief, MCLBelief):
         return belief.particles.copy(), belief.log_weights.copy()
+    if isinstance(belief, GridBelief):
+        return (belief.prob.copy(),)
     return belief.mean.copy(), belief.cov.copy()
 
 

@@ -516,3 +516,32 @@ def test_grid_exact_pixel_size(size, rooms):
     r = GridRenderer(size)
     assert r.render_rgb(make_grid_frame(rooms)).shape == (size[1], size[0], 3)
     r.close()
+
+
+def test_grid_belief_heat_map_follows_the_mass(grid_renderer, rooms):
+    """A grid belief's x-y marginal is drawn over the map: a spread-out belief changes much of
+    the image, a peaked one a patch that moves with the peak; frames without it are drawn as
+    before (the legend names the particles again)."""
+    base = dataclasses.replace(make_grid_frame(rooms), particles=None, weights=None)
+    spread = np.ones((40, 40))  # 20 m at 0.5 m cells
+    peak = np.zeros((40, 40))
+    peak[10, 30] = 1.0
+    peak[11, 30] = 0.2
+    moved = np.roll(peak, 12, axis=0)
+    a = grid_renderer.render_rgb(base)
+    b = grid_renderer.render_rgb(dataclasses.replace(base, belief_map=spread, belief_cell_size=0.5))
+    c = grid_renderer.render_rgb(dataclasses.replace(base, belief_map=peak, belief_cell_size=0.5))
+    d = grid_renderer.render_rgb(dataclasses.replace(base, belief_map=moved, belief_cell_size=0.5))
+    assert n_changed(a, b) > 5 * n_changed(a, c) > 0
+    assert n_changed(c, d) > 0
+    assert np.array_equal(grid_renderer.render_rgb(base), a)
+
+
+def test_grid_heat_map_on_a_yawed_map_and_bad_maps(grid_renderer, rooms):
+    frame = dataclasses.replace(make_grid_frame(yawed(rooms)), belief_map=np.eye(40),
+                                belief_cell_size=0.5)
+    assert grid_renderer.render_rgb(frame).shape == (240, 300, 3)
+    with pytest.raises(ValueError, match="belief_map"):
+        grid_renderer.render_rgb(dataclasses.replace(frame, belief_map=np.ones(40)))
+    with pytest.raises(ValueError, match="belief_cell_size"):
+        grid_renderer.render_rgb(dataclasses.replace(frame, belief_cell_size=0.0))

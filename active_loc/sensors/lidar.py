@@ -402,6 +402,27 @@ def likelihood_field_log_table(
     return out
 
 
+@numba.njit(cache=True)
+def _end_points_in_sensor_frame(
+    z: NDArray, beam_angles: NDArray, max_range: float
+) -> tuple[NDArray, NDArray, int]:
+    """End points ``(ex, ey)`` (m) in the sensor frame of the beams with a return (max
+    readings carry no end point), packed at the front; returns them and their count."""
+    n_beams = z.shape[0]
+    ex = np.empty(n_beams)
+    ey = np.empty(n_beams)
+    n_used = 0
+    threshold = max_range * (1.0 - MAX_READING_TOL)
+    for m in range(n_beams):
+        if z[m] >= threshold:
+            continue
+        r = max(z[m], 0.0)
+        ex[n_used] = r * np.cos(beam_angles[m])
+        ey[n_used] = r * np.sin(beam_angles[m])
+        n_used += 1
+    return ex, ey, n_used
+
+
 @numba.njit(cache=True, parallel=_PARALLEL)
 def likelihood_field_table_log_likelihood(
     z: NDArray,
@@ -421,20 +442,9 @@ def likelihood_field_table_log_likelihood(
     :func:`likelihood_field_log_table` (same result, one lookup per beam); end points off the
     map score ``log_p_off_map`` = ``log(z_rand / max_range)``. Shapes as there."""
     ny, nx = log_table.shape
-    n_beams = z.shape[0]
     # the end points in the sensor frame are the same for every particle: compute them once
     # and rotate per particle, instead of a sin/cos per particle and beam
-    ex = np.empty(n_beams)
-    ey = np.empty(n_beams)
-    n_used = 0
-    threshold = max_range * (1.0 - MAX_READING_TOL)
-    for m in range(n_beams):
-        if z[m] >= threshold:
-            continue
-        r = max(z[m], 0.0)
-        ex[n_used] = r * np.cos(beam_angles[m])
-        ey[n_used] = r * np.sin(beam_angles[m])
-        n_used += 1
+    ex, ey, n_used = _end_points_in_sensor_frame(z, beam_angles, max_range)
     inv_res = 1.0 / resolution
     for k in numba.prange(poses.shape[0]):
         c = np.cos(poses[k, 2])
@@ -484,19 +494,8 @@ def likelihood_field_skip_log_likelihood(
     ``(ny, nx)`` (m). Returns the number of beams skipped.
     """
     ny, nx = log_table.shape
-    n_beams = z.shape[0]
     n_poses = poses.shape[0]
-    ex = np.empty(n_beams)
-    ey = np.empty(n_beams)
-    n_used = 0
-    threshold = max_range * (1.0 - MAX_READING_TOL)
-    for m in range(n_beams):
-        if z[m] >= threshold:
-            continue
-        r = max(z[m], 0.0)
-        ex[n_used] = r * np.cos(beam_angles[m])
-        ey[n_used] = r * np.sin(beam_angles[m])
-        n_used += 1
+    ex, ey, n_used = _end_points_in_sensor_frame(z, beam_angles, max_range)
     inv_res = 1.0 / resolution
     # cell of every end point (-1 off the map), and per beam how many particles it agrees with
     cells = np.empty((n_poses, n_used), dtype=np.int64)

@@ -23,6 +23,7 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_steps.py
+	$(BIN)/python benchmarks/bench_maze.py
 	$(BIN)/python benchmarks/bench_mcl.py
 
 lint: $(STAMP)

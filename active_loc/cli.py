@@ -19,9 +19,8 @@ from pathlib import Path
 import gymnasium as gym
 
 import active_loc
-from active_loc.agents import RandomAgent, TextbookAgent
-
-AGENTS = {"random": RandomAgent, "textbook": TextbookAgent}
+from active_loc.agents import AGENT_NAMES, make_agent
+from active_loc.envs.registration import OTHER_ENV_IDS
 
 
 def render_episode(env_id: str, agent_name: str, out: Path, seed: int, fps: int) -> int:
@@ -29,7 +28,11 @@ def render_episode(env_id: str, agent_name: str, out: Path, seed: int, fps: int)
     import imageio.v2 as imageio
 
     env = gym.make(env_id, render_mode="rgb_array")
-    agent = RandomAgent(seed) if agent_name == "random" else AGENTS[agent_name]()
+    try:
+        agent = make_agent(agent_name, env, seed)
+    except ValueError as error:
+        print(f"active-loc render: error: {error}", file=sys.stderr)
+        return 2
     obs, info = env.reset(seed=seed)
     frames = [env.render()]
     done = False
@@ -120,7 +123,8 @@ def main(argv: list[str] | None = None) -> int:
     sub.add_parser("envs", help="list the registered env ids")
     render = sub.add_parser("render", help="write one episode as a GIF or MP4")
     render.add_argument("--env", default="ActiveLoc/Textbook-v0")
-    render.add_argument("--agent", choices=sorted(AGENTS), default="textbook")
+    render.add_argument("--agent", default="textbook",
+                        help=f"one of {', '.join(AGENT_NAMES)} or sb3:PATH")
     render.add_argument("--out", type=Path, default=Path("reports/episode.gif"))
     render.add_argument("--seed", type=int, default=0)
     render.add_argument("--fps", type=int, default=10)
@@ -139,7 +143,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.command == "envs":
         for env_id, scenario, max_steps in active_loc.ENV_IDS:
-            print(f"{env_id:<28} scenario={scenario:<18} max_episode_steps={max_steps}")
+            print(f"{env_id:<32} scenario={scenario:<18} max_episode_steps={max_steps}")
+        for env_id, entry_point, limit in OTHER_ENV_IDS:
+            steps = "set by the env" if limit is None else limit
+            print(f"{env_id:<32} {entry_point}  max_episode_steps={steps}")
         return 0
     if args.command == "evaluate":
         return evaluate_command(args)

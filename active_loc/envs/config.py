@@ -81,7 +81,7 @@ class LocalizationConfig:
     lidar_mixture: tuple[float, float, float, float] = (0.9, 0.04, 0.03, 0.03)
     lidar_lambda_short: float = 0.1  # rate of the short-reading exponential (1/m)
     # beam model: directions of a range table precomputed once per map (RangeTable; ~30x
-    # faster steps for ~1 s per new map); 0 ray-casts every particle's beams at every step
+    # faster steps for 2-4 s per new 200 x 200 map); 0 ray-casts every beam at every step
     lidar_range_bins: int = 0
     unknown_reflects: bool = True  # whether unknown grid cells stop lidar beams
     # likelihood field: AMCL's beam skipping, its outlier rejection for unmapped obstacles:

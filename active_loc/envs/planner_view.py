@@ -14,10 +14,11 @@ from active_loc.beliefs.ekf_filterpy import FilterpyEKFBelief
 from active_loc.beliefs.grid import GridBelief
 from active_loc.beliefs.mcl import MCLBelief
 from active_loc.envs.actions import ControlLimits
+from active_loc.geometry import wrap_angle
 from active_loc.maps import LandmarkMap, OccupancyGrid
 from active_loc.motion import UnicycleModel
 from active_loc.sensors.landmarks import LandmarkSensor
-from active_loc.sensors.lidar import LidarSensor
+from active_loc.sensors.lidar import LidarSensor, cast_ray
 from active_loc.sensors.lidar_lattice import (
     lattice_field_log_likelihood,
     off_map_log_probability,
@@ -97,11 +98,13 @@ class PlannerView:
                 update_with_association(out, z[visible], self.map.positions,
                                         self.association_gate)
             return out, z, visible
-        out.predict(control, rng)
-        cumulative = np.cumsum(out.weights)
-        pick = int(np.searchsorted(cumulative, rng.random() * cumulative[-1], side="right"))
-        pose = out.particles[min(pick, len(cumulative) - 1)].copy()
         if isinstance(self.map, OccupancyGrid):
+            # the robot's pose first: a move into a wall is blocked, and the robot knows it
+            # (the env then predicts with V = 0), so bumping teaches the planner nothing
+            cumulative = np.cumsum(out.weights)
+            pick = int(np.searchsorted(cumulative, rng.random() * cumulative[-1], side="right"))
+            pose, blocked = self._move(out.particles[min(pick, len(cumulative) - 1)], control)
+            out.predict(np.array([0.0 if blocked else control[0], control[1]]), rng)
             arrays = self.map.kernel_arrays()
             z = self.sensor.measure(pose, arrays, rng)
             log_lik = self.sensor.log_likelihood(
@@ -109,12 +112,39 @@ class PlannerView:
             )
             out.update(log_lik, rng)
             return out, z, np.ones(z.shape[0], dtype=np.bool_)
+        out.predict(control, rng)
+        cumulative = np.cumsum(out.weights)
+        pick = int(np.searchsorted(cumulative, rng.random() * cumulative[-1], side="right"))
+        pose = out.particles[min(pick, len(cumulative) - 1)].copy()
         z, visible = self.sensor.measure(pose, self.map.positions, rng)
         out.update_landmarks(
             z, visible, self.map.positions, self.sensor, rng,
             known_correspondence=self.known_correspondences,
         )
         return out, z, visible
+
+    def _move(
+        self, pose: NDArray[np.float64], control: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], bool]:
+        """A hypothetical robot at ``pose`` ``(3,)`` after ``control`` on the grid map,
+        noise-free: turned, and moved unless the straight move crosses a wall. Returns the
+        new pose and whether the move was blocked."""
+        assert isinstance(self.map, OccupancyGrid)
+        dt = self.motion.dt
+        step = float(control[0]) * dt
+        heading = float(pose[2])
+        out = np.array([pose[0], pose[1], wrap_angle(heading + float(control[1]) * dt)])
+        if step == 0.0:
+            return out, False
+        direction = heading if step > 0.0 else heading + np.pi
+        values, res, ox, oy, c, s = self.map.kernel_arrays()
+        run = cast_ray(values, res, ox, oy, c, s, float(pose[0]), float(pose[1]), direction,
+                       abs(step), True)
+        target = pose[:2] + step * np.array([np.cos(heading), np.sin(heading)])
+        if run < abs(step) or not self.map.is_free(target):
+            return out, True
+        out[:2] = target
+        return out, False
 
     def _simulate_grid(
         self, belief: GridBelief, control: NDArray[np.float64], rng: np.random.Generator
@@ -123,11 +153,14 @@ class PlannerView:
         correct (in place); returns the scan ``(M,)``."""
         assert isinstance(self.map, OccupancyGrid) and isinstance(self.sensor, LidarSensor)
         noise_std = np.sqrt(np.diag(self.motion.noise_cov))
-        belief.predict_unicycle(float(control[0]), float(control[1]), self.motion.dt, noise_std)
         poses = belief.cell_poses()  # (X, Y, H, 3)
         cumulative = np.cumsum(belief.prob[0].reshape(-1))
         pick = int(np.searchsorted(cumulative, rng.random() * cumulative[-1], side="right"))
-        pose = poses.reshape(-1, 3)[min(pick, cumulative.shape[0] - 1)].copy()
+        # the robot's pose first, moved (a wall blocks it: the env then predicts with V = 0)
+        pose, blocked = self._move(poses.reshape(-1, 3)[min(pick, cumulative.shape[0] - 1)],
+                                   control)
+        belief.predict_unicycle(0.0 if blocked else float(control[0]), float(control[1]),
+                                self.motion.dt, noise_std)
         arrays = self.map.kernel_arrays()
         z = self.sensor.measure(pose, arrays, rng)
         free = belief.free[0]

@@ -150,3 +150,26 @@ def test_the_wall_follower_drives_without_hitting_walls():
 def test_agents_that_cannot_drive_the_env_are_refused(env_id, name, match):
     with pytest.raises(ValueError, match=match):
         make_agent(name, gym.make(env_id))
+
+
+def test_a_planned_move_into_a_wall_is_blocked_as_in_the_env():
+    """The planner's hypothetical robot stops at walls, and the filter then predicts with
+    V = 0, as the env's does: a bump must not look informative (particles dying in the wall
+    would shrink the simulated belief)."""
+    from active_loc.maps import OccupancyGrid
+
+    grid = OccupancyGrid.from_ascii(
+        ["##########", "#........#", "#........#", "#........#", "##########"], 0.5
+    )
+    env = gym.make("ActiveLoc/GridMCLKidnapped-v0", map=grid, kidnap=False, n_particles=300,
+                   kld=False, augmented=False, action_type="discrete")
+    env.reset(seed=0)
+    view = env.unwrapped.planner_view()
+    speed = view.limits.primitives()[1]  # forward
+    facing_wall = np.array([4.45, 1.25, 0.0])  # 0.05 m from the east wall
+    moved, blocked = view._move(facing_wall, speed)
+    assert blocked and np.array_equal(moved[:2], facing_wall[:2])
+    open_floor = np.array([2.0, 1.25, 0.0])
+    moved, blocked = view._move(open_floor, speed)
+    assert not blocked
+    assert moved[0] == pytest.approx(2.0 + speed[0] * view.limits.dt)

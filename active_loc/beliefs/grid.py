@@ -73,6 +73,19 @@ def _path_free(free: NDArray, b: int, x: int, y: int, dx: int, dy: int) -> bool:
     return True
 
 
+@numba.njit(cache=True, inline="always")
+def _stays(free: NDArray, b: int, x: int, y: int, dx: int, dy: int) -> bool:
+    """Whether mass of cell ``(x, y)`` commanded to move by ``(dx, dy)`` cells stays where it
+    is: no move, or a blocked one (one step: the target cell; longer: :func:`_path_free`)."""
+    if dx == 0 and dy == 0:
+        return True
+    if abs(dx) <= 1 and abs(dy) <= 1:
+        tx = x + dx
+        ty = y + dy
+        return not (0 <= tx < free.shape[1] and 0 <= ty < free.shape[2] and free[b, tx, ty])
+    return not _path_free(free, b, x, y, dx, dy)
+
+
 @numba.njit(cache=True)
 def predict_kernel(
     prob: NDArray,
@@ -121,13 +134,7 @@ def predict_kernel(
                         th = new_h[h, k]
                         tx = x + dx
                         ty = y + dy
-                        if dx == 0 and dy == 0:
-                            blocked = True
-                        elif abs(dx) <= 1 and abs(dy) <= 1:  # one step: only the target
-                            blocked = not (0 <= tx < nx and 0 <= ty < ny and free[b, tx, ty])
-                        else:
-                            blocked = not _path_free(free, b, x, y, dx, dy)
-                        if blocked:
+                        if _stays(free, b, x, y, dx, dy):
                             out[b, x, y, th] += p * weights[k]
                         else:
                             out[b, tx, ty, th] += p * weights[k]
@@ -172,13 +179,7 @@ def predict_heading_kernel(
                         th = (h + offsets[b, h, k, 2]) % nh
                         tx = x + dx
                         ty = y + dy
-                        if dx == 0 and dy == 0:
-                            blocked = True
-                        elif abs(dx) <= 1 and abs(dy) <= 1:  # one step: only the target
-                            blocked = not (0 <= tx < nx and 0 <= ty < ny and free[b, tx, ty])
-                        else:
-                            blocked = not _path_free(free, b, x, y, dx, dy)
-                        if blocked:
+                        if _stays(free, b, x, y, dx, dy):
                             out[b, x, y, th] += p * w
                         else:
                             out[b, tx, ty, th] += p * w
@@ -234,13 +235,7 @@ def translate_kernel(
                         dy = offsets[b, h, k, 1]
                         tx = x + dx
                         ty = y + dy
-                        if dx == 0 and dy == 0:
-                            blocked = True
-                        elif abs(dx) <= 1 and abs(dy) <= 1:  # one step: only the target
-                            blocked = not (0 <= tx < nx and 0 <= ty < ny and free[b, tx, ty])
-                        else:
-                            blocked = not _path_free(free, b, x, y, dx, dy)
-                        if blocked:
+                        if _stays(free, b, x, y, dx, dy):
                             out[b, x, y, h] += p * w
                         else:
                             out[b, tx, ty, h] += p * w

@@ -144,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "envs":
         for env_id, scenario, max_steps in active_loc.ENV_IDS:
             print(f"{env_id:<32} scenario={scenario:<18} max_episode_steps={max_steps}")
-        for env_id, entry_point, limit in OTHER_ENV_IDS:
+        for env_id, entry_point, _vector, limit in OTHER_ENV_IDS:
             steps = "set by the env" if limit is None else limit
             print(f"{env_id:<32} {entry_point}  max_episode_steps={steps}")
         return 0

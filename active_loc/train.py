@@ -55,7 +55,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 import active_loc
 from active_loc.agents.sb3 import ALGORITHMS, CONFIG_FILE, MODEL_FILE, algorithm_class
 from active_loc.envs.registration import ENTRY_POINT, MAZE_ID
-from active_loc.policies import SmallCNN
+from active_loc.policies import PooledBeliefCNN, SmallCNN
 
 Algo = Literal["ppo", "a2c", "dqn", "sac", "recurrent_ppo"]
 
@@ -157,6 +157,10 @@ class TrainArgs:
     """Entropy coefficient; None: ppo, a2c, recurrent_ppo 0.01; sac learns it ("auto")."""
     net_arch: tuple[int, ...] | None = None
     """Hidden layers of the policy, value and Q networks; None: 64 64 (sac 256 256)."""
+    cnn: Literal["flat", "pooled"] = "flat"
+    """Extractor of cnn policies. flat: SmallCNN (convolutions, flattened, a linear layer);
+    pooled: PooledBeliefCNN (belief rescaled, convolutions, mean and max over the map: any
+    maze size, fewer weights to learn on large mazes)."""
     cnn_channels: tuple[int, ...] = (16, 32, 32)
     """Output channels of the CNN's 3x3 convolutions, one per layer (cnn policies)."""
     features_dim: int = 128
@@ -275,7 +279,7 @@ def resolve_policy(
     policy_kwargs: dict[str, Any] = {"net_arch": list(net_arch)}
     if kind == "cnn":
         policy_kwargs.update(
-            features_extractor_class=SmallCNN,
+            features_extractor_class=SmallCNN if args.cnn == "flat" else PooledBeliefCNN,
             features_extractor_kwargs={
                 "features_dim": args.features_dim,
                 "channels": tuple(args.cnn_channels),

@@ -273,9 +273,9 @@ def _finish_one(params: NDArray, state: NDArray, world: NDArray, obs: NDArray) -
 @numba.njit(cache=True)
 def step_batch(
     actions: NDArray, params: NDArray, noise: NDArray, state: NDArray, world: NDArray,
-    obs: NDArray,
+    obs: NDArray, active: NDArray,
 ) -> int:
-    """One step of the whole batch.
+    """One step of the batch's active members.
 
     Args:
         actions: ``(B, 2)`` continuous actions in [-1, 1] (clipped) or, for discrete action
@@ -286,13 +286,17 @@ def step_batch(
             cursor is ``state[:, X_NOISE_ROW]``).
         state: ``(B, STATE_SIZE)``, world: ``(B, N, WORLD_SIZE)``: updated in place.
         obs: ``(B, D)`` float32 out.
+        active: ``(B,)`` bool; inactive members are left untouched (a vector env resets them
+            this step instead), their actions unread.
 
     Returns:
-        -1 on success; the index of a member whose action is not finite; or
-        :data:`NEED_NOISE` when a member's noise block is used up. In the last two cases
-        nothing has been changed.
+        -1 on success; the index of an active member whose action is not finite; or
+        :data:`NEED_NOISE` when an active member's noise block is used up. In the last two
+        cases nothing has been changed.
     """
     for b in range(actions.shape[0]):
+        if not active[b]:
+            continue
         if not (np.isfinite(actions[b, 0]) and np.isfinite(actions[b, 1])):
             return b
         if state[b, X_NOISE_ROW] >= noise.shape[1]:
@@ -302,6 +306,8 @@ def step_batch(
     kind = int(params[P_KIND])  # reshaped once per call, not per member
     run_ekf = params[P_RUN_EKF] > 0.5
     for b in range(actions.shape[0]):
+        if not active[b]:
+            continue
         v, omega = _decode(actions[b], params)
         row = int(state[b, X_NOISE_ROW])
         state[b, X_NOISE_ROW] = row + 1
@@ -439,6 +445,7 @@ class LandmarkCore(StateViews):
         self.noise = np.zeros((batch_size, NOISE_BLOCK, 3 + 2 * n))
         #: the actions of the next step, written by the env: ``(B, 2)``, see :func:`step_batch`
         self.actions = np.zeros((batch_size, 2))
+        self._all_active = np.ones(batch_size, dtype=np.bool_)
         self._random_start = config.start == "random"
         self._start_pose = np.array(config.start_pose, dtype=np.float64)
         self._error_std = np.array(config.initial_error_std, dtype=np.float64)
@@ -502,21 +509,27 @@ class LandmarkCore(StateViews):
         self.noise[b] = rng.standard_normal(self.noise.shape[1:])
         self.state[b, X_NOISE_ROW] = 0
 
-    def step(self, rngs: Sequence[np.random.Generator]) -> int:
-        """Advance every member with the actions in :attr:`actions` ``(B, 2)``.
+    def step(
+        self, rngs: Sequence[np.random.Generator], active: NDArray[np.bool_] | None = None
+    ) -> int:
+        """Advance the members with the actions in :attr:`actions` ``(B, 2)``.
 
         Args:
             rngs: the Generator of each member, to refill used-up noise blocks.
+            active: ``(B,)`` which members to advance; None: all.
 
         Returns:
             -1, or the index of a member whose action is not finite (nothing advanced then).
         """
         params = self.models.params
-        code = step_batch(self.actions, params, self.noise, self.state, self.world, self.obs)
+        if active is None:
+            active = self._all_active
+        args = (self.actions, params, self.noise, self.state, self.world, self.obs, active)
+        code = step_batch(*args)
         if code == NEED_NOISE:
-            for b in np.flatnonzero(self.state[:, X_NOISE_ROW] >= NOISE_BLOCK):
+            for b in np.flatnonzero(active & (self.state[:, X_NOISE_ROW] >= NOISE_BLOCK)):
                 self.refill_noise(int(b), rngs[b])
-            code = step_batch(self.actions, params, self.noise, self.state, self.world, self.obs)
+            code = step_batch(*args)
         if code >= 0 or self._fused:
             return code
         collided = self.state[:, X_STATS + S_COLLIDED] > 0.5

@@ -322,46 +322,61 @@ class ActiveLocalizationEnv(gym.Env):
 
     def _frame(self) -> Any:
         """What the renderer draws this step (truth included: rendering is for people)."""
-        from active_loc.envs.rendering import GridFrame, LandmarkFrame
-
-        core = self.core
-        lmap = core.maps[0]
-        assert lmap is not None
-        row = core.state[0]
-        particles = weights = belief_map = None
-        if isinstance(core, GridCore):
-            assert core.belief is not None
-            belief_map = core.belief.marginal_xy()[0]
-        elif isinstance(core, ParticleCore):
-            assert core.belief is not None
-            particles, weights = core.belief.particles.copy(), core.belief.weights.copy()
-        common = {
-            "true_pose": core.pose[0].copy(),
-            "mean": row[X_MEAN : X_MEAN + 3].copy(),
-            "cov": row[X_COV : X_COV + 9].reshape(3, 3).copy(),
-            "true_path": np.array(self._true_path),
-            "belief_path": np.array(self._belief_path),
-            "step": self._steps,
-            "entropy": float(row[_ENTROPY]),
-            "title": self.spec.id if self.spec is not None else type(self).__name__,
-            "particles": particles,
-            "weights": weights,
-        }
-        if isinstance(lmap, OccupancyGrid):
-            assert isinstance(core, ParticleCore) and core.lidar is not None
-            return GridFrame(
-                grid=lmap, beam_angles=core.lidar.beam_angles, ranges=core.ranges[0].copy(),
-                max_range=core.lidar.max_range, kidnapped=bool(row[_KIDNAPPED] > 0.5),
-                people=None if core.crowd is None else core.crowd.discs.copy(),
-                belief_map=belief_map,
-                belief_cell_size=core.config.grid_cell_size if belief_map is not None else 0.0,
-                **common,
-            )
-        n = lmap.n_landmarks
-        return LandmarkFrame(
-            bounds=lmap.bounds, landmarks=lmap.positions, visible=core.visible[0, :n].copy(),
-            fov=self.config.fov, max_range=self.config.max_range, **common,
+        title = self.spec.id if self.spec is not None else type(self).__name__
+        return build_frame(
+            self.core, 0, self._true_path, self._belief_path, self._steps, title
         )
+
+
+def build_frame(
+    core: LandmarkCore | ParticleCore,
+    b: int,
+    true_path: list[NDArray[np.float64]],
+    belief_path: list[NDArray[np.float64]],
+    step: int,
+    title: str,
+) -> Any:
+    """The renderer's frame of member ``b`` of a core (truth included: rendering is for
+    people), with the paths so far ``(T, 2)`` each."""
+    from active_loc.envs.rendering import GridFrame, LandmarkFrame
+
+    lmap = core.maps[b]
+    assert lmap is not None
+    row = core.state[b]
+    particles = weights = belief_map = None
+    if isinstance(core, GridCore):
+        assert core.belief is not None
+        belief_map = core.belief.marginal_xy()[0]
+    elif isinstance(core, ParticleCore):
+        assert core.belief is not None
+        particles, weights = core.belief.particles.copy(), core.belief.weights.copy()
+    common = {
+        "true_pose": core.pose[b].copy(),
+        "mean": row[X_MEAN : X_MEAN + 3].copy(),
+        "cov": row[X_COV : X_COV + 9].reshape(3, 3).copy(),
+        "true_path": np.array(true_path),
+        "belief_path": np.array(belief_path),
+        "step": step,
+        "entropy": float(row[_ENTROPY]),
+        "title": title,
+        "particles": particles,
+        "weights": weights,
+    }
+    if isinstance(lmap, OccupancyGrid):
+        assert isinstance(core, ParticleCore) and core.lidar is not None
+        return GridFrame(
+            grid=lmap, beam_angles=core.lidar.beam_angles, ranges=core.ranges[b].copy(),
+            max_range=core.lidar.max_range, kidnapped=bool(row[_KIDNAPPED] > 0.5),
+            people=None if core.crowd is None else core.crowd.discs.copy(),
+            belief_map=belief_map,
+            belief_cell_size=core.config.grid_cell_size if belief_map is not None else 0.0,
+            **common,
+        )
+    n = lmap.n_landmarks
+    return LandmarkFrame(
+        bounds=lmap.bounds, landmarks=lmap.positions, visible=core.visible[b, :n].copy(),
+        fov=core.config.fov, max_range=core.config.max_range, **common,
+    )
 
 
 def _is_integer(action: Any) -> bool:

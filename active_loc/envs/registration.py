@@ -5,6 +5,7 @@ from __future__ import annotations
 from gymnasium.envs.registration import register, registry
 
 ENTRY_POINT = "active_loc.envs.localization_env:ActiveLocalizationEnv"
+VECTOR_ENTRY_POINT = "active_loc.envs.vector_env:ActiveLocalizationVectorEnv"
 
 #: (id, scenario, max_episode_steps) of the ids served by ``ActiveLocalizationEnv``
 ENV_IDS: tuple[tuple[str, str, int], ...] = (
@@ -20,12 +21,15 @@ ENV_IDS: tuple[tuple[str, str, int], ...] = (
 
 MAZE_ID = "ActiveLoc/Maze-v0"
 MAZE_ENTRY_POINT = "active_loc.envs.maze_env:MazeEnv"
+MAZE_VECTOR_ENTRY_POINT = "active_loc.envs.vector_env:maze_vector_env"
 
 #: (id, entry point, max_episode_steps) of the ids with an env class of their own. Maze-v0
 #: has no TimeLimit: its episode length is the ``episode_length`` kwarg (default by maze
 #: size), and the env truncates after exactly that many steps itself, so a registered limit
 #: could only disagree with it (a fixed 15 would cut the 21 x 21 mazes' 30-step episodes).
-OTHER_ENV_IDS: tuple[tuple[str, str, int | None], ...] = ((MAZE_ID, MAZE_ENTRY_POINT, None),)
+OTHER_ENV_IDS: tuple[tuple[str, str, str, int | None], ...] = (
+    (MAZE_ID, MAZE_ENTRY_POINT, MAZE_VECTOR_ENTRY_POINT, None),
+)
 
 
 def register_envs() -> None:
@@ -36,10 +40,14 @@ def register_envs() -> None:
         register(
             id=env_id,
             entry_point=ENTRY_POINT,
+            vector_entry_point=VECTOR_ENTRY_POINT,
             kwargs={"scenario": scenario},
             max_episode_steps=max_steps,
         )
-    for env_id, entry_point, limit in OTHER_ENV_IDS:
+    for env_id, entry_point, vector_entry_point, limit in OTHER_ENV_IDS:
         if env_id in registry:
             continue
-        register(id=env_id, entry_point=entry_point, max_episode_steps=limit)
+        register(
+            id=env_id, entry_point=entry_point, vector_entry_point=vector_entry_point,
+            max_episode_steps=limit,
+        )

@@ -1,0 +1,268 @@
+"""What steps the members of :class:`~active_loc.envs.vector_env.ActiveLocalizationVectorEnv`.
+
+Two engines with one interface (``obs``, ``reset_member``, ``step``, ``infos``, ``frame``):
+
+* :class:`BatchedLandmarkEngine`: the EKF landmark ids. One :class:`LandmarkCore` with
+  B = n members advances the whole batch in one numba kernel call, and the info arrays are
+  read off its state matrix with numpy: no Python loop over members on a step's path.
+* :class:`MemberEngine`: every other id (MCL, grid Markov, unknown correspondences, the maze).
+  Their cores hold one episode each, so the engine keeps n unwrapped single envs and steps
+  them in turn. It still skips gymnasium's wrapper stack and ``SyncVectorEnv``'s per-step
+  copies.
+
+Either way member ``b`` draws only from its own Generator, in the same order as a single env
+seeded the same, so the vector env reproduces n single envs exactly.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.utils import seeding
+from numpy.typing import NDArray
+
+from active_loc.envs.landmark_core import (
+    S_COLLIDED,
+    S_ENTROPY,
+    S_HEAD_ERR,
+    S_KIDNAPPED,
+    S_LOCALIZED,
+    S_N_VISIBLE,
+    S_NIS,
+    S_POS_ERR,
+    S_SUCCESS,
+    S_TERMINAL,
+    S_UNCERTAINTY_REWARD,
+    X_MEAN,
+    X_STATS,
+    LandmarkCore,
+)
+from active_loc.envs.localization_env import ActiveLocalizationEnv, build_frame
+
+#: info dict of a batch: key -> array (n,) (or a nested dict of them), plus ``"_key"`` masks
+BatchInfo = dict[str, Any]
+
+
+def batched_core(env: gym.Env) -> bool:
+    """Whether ``env`` (unwrapped) runs on the fused, batch-first EKF landmark core."""
+    return (
+        isinstance(env, ActiveLocalizationEnv)
+        and type(env.core) is LandmarkCore
+        and env.config.ekf_backend == "numba"
+    )
+
+
+class BatchedLandmarkEngine:
+    """n EKF landmark episodes in one :class:`LandmarkCore` with B = n.
+
+    Args:
+        template: a single env of the id (its config, spaces and reward settings are used).
+        num_envs: n.
+        render_envs: how many leading members keep the paths the renderer draws.
+    """
+
+    def __init__(self, template: ActiveLocalizationEnv, num_envs: int, render_envs: int) -> None:
+        self.config = template.config
+        self.core = LandmarkCore(template.config, batch_size=num_envs)
+        self.num_envs = num_envs
+        self.single_observation_space = template.observation_space
+        self.single_action_space = template.action_space
+        self.title = template.spec.id if template.spec is not None else "ActiveLocalization"
+        self._continuous = template.config.action_type == "continuous"
+        self._primitives = self.core.models.primitives
+        self._reward_name = template.config.reward
+        self._step_cost = float(template.config.step_cost)
+        self._collision_penalty = float(template.config.collision_penalty)
+        self._terminate = bool(template.config.terminate_when_localized)
+        self.rngs: list[np.random.Generator | None] = [None] * num_envs
+        self.collisions = np.zeros(num_envs, dtype=np.int64)
+        self.steps = np.zeros(num_envs, dtype=np.int64)
+        self._render_envs = render_envs
+        self._paths: list[tuple[list[NDArray], list[NDArray]]] = [
+            ([], []) for _ in range(render_envs)
+        ]
+
+    @property
+    def obs(self) -> NDArray[np.float32]:
+        """``(n, D)`` the current observations (a view)."""
+        return self.core.obs
+
+    def reset_member(self, b: int, seed: int | None, options: dict[str, Any] | None) -> None:
+        """New episode of member ``b``; its Generator is (re)seeded as ``Env.reset`` does."""
+        if seed is not None or self.rngs[b] is None:
+            self.rngs[b] = seeding.np_random(seed)[0]
+        rng = self.rngs[b]
+        assert rng is not None
+        self.core.reset_member(b, rng)
+        self.collisions[b] = 0
+        self.steps[b] = 0
+        if b < self._render_envs:
+            self._paths[b] = ([self.core.pose[b, :2].copy()],
+                              [self.core.state[b, X_MEAN : X_MEAN + 2].copy()])
+
+    def step(
+        self, actions: Any, active: NDArray[np.bool_]
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_]]:
+        """Advance the active members; ``(rewards, terminated, truncated)`` of all n (zero and
+        False for the inactive ones, which the caller resets)."""
+        core = self.core
+        self._write_actions(actions, active)
+        code = core.step(self.rngs, active)  # type: ignore[arg-type]
+        if code >= 0:
+            raise ValueError(f"the action of sub-env {code} contains NaN or inf: "
+                             f"{np.asarray(actions)[code]!r}")
+        stats = core.state[:, X_STATS:]
+        collided = active & (stats[:, S_COLLIDED] > 0.5)
+        self.collisions += collided
+        self.steps += active
+        rewards = (
+            stats[:, S_UNCERTAINTY_REWARD] - self._step_cost
+            - np.where(collided, self._collision_penalty, 0.0)
+        )
+        rewards[~active] = 0.0
+        terminated = active & (stats[:, S_TERMINAL] > 0.5) if self._terminate else (
+            np.zeros(self.num_envs, dtype=np.bool_))
+        for b in range(min(self._render_envs, self.num_envs)):
+            if active[b]:
+                self._paths[b][0].append(core.pose[b, :2].copy())
+                self._paths[b][1].append(core.state[b, X_MEAN : X_MEAN + 2].copy())
+        return rewards, terminated, np.zeros(self.num_envs, dtype=np.bool_)
+
+    def infos(self, mask: NDArray[np.bool_]) -> BatchInfo:
+        """The members' info arrays (the keys of a single env's info, same values), with
+        ``mask`` as every ``"_key"``: all n rows are filled, whatever the mask."""
+        stats = self.core.state[:, X_STATS:]
+        collided = stats[:, S_COLLIDED] > 0.5
+        penalty = np.where(collided, -self._collision_penalty, 0.0)
+        terms = {
+            self._reward_name: stats[:, S_UNCERTAINTY_REWARD].copy(),
+            "step_cost": np.full(self.num_envs, -self._step_cost),
+            "collision": penalty,
+        }
+        info: BatchInfo = {
+            "pose_error": stats[:, S_POS_ERR].copy(),
+            "heading_error": stats[:, S_HEAD_ERR].copy(),
+            "entropy": stats[:, S_ENTROPY].copy(),
+            "localized": stats[:, S_LOCALIZED] > 0.5,
+            "is_success": stats[:, S_SUCCESS] > 0.5,
+            "collisions": self.collisions.copy(),
+            "reward_terms": with_masks(terms, mask),
+            "n_visible": stats[:, S_N_VISIBLE].astype(np.int64),
+            "nis": stats[:, S_NIS].copy(),
+            "kidnapped": stats[:, S_KIDNAPPED] > 0.5,
+            "association_accuracy": np.ones(self.num_envs),
+        }
+        return with_masks(info, mask)
+
+    def frame(self, b: int) -> Any:
+        """The renderer's frame of member ``b`` (< ``render_envs``)."""
+        true_path, belief_path = self._paths[b]
+        return build_frame(self.core, b, true_path, belief_path, int(self.steps[b]), self.title)
+
+    def _write_actions(self, actions: Any, active: NDArray[np.bool_]) -> None:
+        n = self.num_envs
+        actions = np.asarray(actions)
+        if self._continuous:
+            if actions.shape != (n, 2) or actions.dtype.kind not in "fiu":
+                raise ValueError(
+                    f"actions must be real numbers of shape ({n}, 2) for "
+                    f"action_type='continuous', got {actions.dtype} {actions.shape}"
+                )
+            self.core.actions[:] = actions
+            return
+        if actions.shape != (n,) or actions.dtype.kind not in "iu":
+            raise ValueError(
+                f"actions must be integers of shape ({n},) for action_type='discrete', "
+                f"got {actions.dtype} {actions.shape}"
+            )
+        k = len(self._primitives)
+        bad = active & ((actions < 0) | (actions >= k))
+        if bad.any():
+            b = int(np.flatnonzero(bad)[0])
+            raise ValueError(f"the action of sub-env {b} must be in [0, {k}), got {actions[b]}")
+        self.core.actions[:] = self._primitives[np.where(active, actions, 0)]
+
+
+class MemberEngine:
+    """n unwrapped single envs stepped in turn (ids whose core holds one episode).
+
+    Args:
+        envs: the n members (unwrapped; the first ones built with a render mode render).
+    """
+
+    def __init__(self, envs: list[gym.Env]) -> None:
+        self.envs = envs
+        self.num_envs = len(envs)
+        self.single_observation_space = envs[0].observation_space
+        self.single_action_space = envs[0].action_space
+        self.obs = np.zeros(
+            (self.num_envs, *self.single_observation_space.shape),  # type: ignore[misc]
+            dtype=self.single_observation_space.dtype,
+        )
+        self._infos: list[dict[str, Any]] = [{} for _ in envs]
+
+    def reset_member(self, b: int, seed: int | None, options: dict[str, Any] | None) -> None:
+        self.obs[b], self._infos[b] = self.envs[b].reset(seed=seed, options=options)
+
+    def step(
+        self, actions: Any, active: NDArray[np.bool_]
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_]]:
+        n = self.num_envs
+        if len(actions) != n:
+            raise ValueError(f"expected {n} actions (one per sub-env), got {len(actions)}")
+        rewards = np.zeros(n)
+        terminated = np.zeros(n, dtype=np.bool_)
+        truncated = np.zeros(n, dtype=np.bool_)
+        for b in np.flatnonzero(active):
+            obs, reward, term, trunc, self._infos[b] = self.envs[b].step(actions[b])
+            self.obs[b] = obs
+            rewards[b], terminated[b], truncated[b] = reward, term, trunc
+        return rewards, terminated, truncated
+
+    def infos(self, mask: NDArray[np.bool_]) -> BatchInfo:
+        """The masked members' last info dicts, stacked (gymnasium's vector info layout)."""
+        out: BatchInfo = {}
+        for b in np.flatnonzero(mask):
+            add_member_info(out, self._infos[b], int(b), self.num_envs)
+        return out
+
+    def frame(self, b: int) -> Any:
+        return self.envs[b].render()
+
+
+def with_masks(info: dict[str, Any], mask: NDArray[np.bool_]) -> BatchInfo:
+    """``info`` with a ``"_key"`` mask for every key (nested dicts included)."""
+    out: BatchInfo = {}
+    for key, value in info.items():
+        out[key] = value
+        out[f"_{key}"] = mask.copy()
+    return out
+
+
+def add_member_info(out: BatchInfo, info: dict[str, Any], b: int, n: int) -> None:
+    """Write member ``b``'s info into the stacked ``out``: Python bool, int and float become
+    bool, int64 and float64 arrays (n,), nested dicts recurse, anything else an object array;
+    ``"_key"`` marks the members that have the key."""
+    for key, value in info.items():
+        if isinstance(value, dict):
+            add_member_info(out.setdefault(key, {}), value, b, n)
+        else:
+            if key not in out:
+                out[key] = np.zeros(n, dtype=_info_dtype(value))
+            out[key][b] = value
+        mask = out.setdefault(f"_{key}", np.zeros(n, dtype=np.bool_))
+        mask[b] = True
+
+
+def _info_dtype(value: Any) -> Any:
+    if isinstance(value, (bool, np.bool_)):
+        return np.bool_
+    if isinstance(value, (int, np.integer)):
+        return np.int64
+    if isinstance(value, (float, np.floating)):
+        return np.float64
+    if isinstance(value, np.ndarray):
+        raise TypeError("array-valued info entries are not stacked")  # none exist today
+    return object

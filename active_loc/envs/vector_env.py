@@ -1,0 +1,253 @@
+"""``ActiveLocalizationVectorEnv``: n episodes of one id behind gymnasium's ``VectorEnv`` API.
+
+Registered as the ``vector_entry_point`` of every ``ActiveLoc`` id, so that::
+
+    envs = gymnasium.make_vec("ActiveLoc/LandmarkEKF-v0", 256,
+                              vectorization_mode="vector_entry_point")
+
+returns it. Sub-env i is seeded with seed + i and reproduces, step for step, a single env
+made with the same kwargs and seeded seed + i (observations, rewards, flags and infos). The
+EKF landmark ids step the whole batch in one kernel call; the others step their members in
+turn (:mod:`active_loc.envs.vector_engines`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+from numpy.typing import NDArray
+
+from active_loc.envs.localization_env import ActiveLocalizationEnv
+from active_loc.envs.maze_env import MazeEnv
+from active_loc.envs.vector_engines import (
+    BatchedLandmarkEngine,
+    BatchInfo,
+    MemberEngine,
+    batched_core,
+)
+
+
+class ActiveLocalizationVectorEnv(VectorEnv):
+    """n active-localization episodes stepped together.
+
+    Args:
+        num_envs: n >= 1.
+        max_episode_steps: truncate each sub-env after this many steps (the registration's
+            limit, passed by ``make_vec``); None: no limit beyond the env's own.
+        autoreset_mode: gymnasium's ``AutoresetMode`` (or its string): ``NEXT_STEP``
+            (default: the step after an episode ends resets that sub-env and ignores its
+            action), ``SAME_STEP`` (reset at once; the last observation and info are in
+            ``info["final_obs"]`` and ``info["final_info"]``) or ``DISABLED`` (reset ended
+            sub-envs yourself with ``reset(options={"reset_mask": mask})``).
+        render_mode: None or ``"rgb_array"``.
+        render_envs: how many sub-envs ``render()`` draws, tiled in a grid (1: the first
+            sub-env's frame as is).
+        env_class: the single env class (``ActiveLocalizationEnv`` or ``MazeEnv``).
+        **env_kwargs: the single env's kwargs (``scenario`` and config fields, or the maze's).
+
+    ``info`` is a dict of arrays ``(n,)`` with gymnasium's ``"_key"`` masks; its keys and
+    dtypes are the same on every step (a single env's keys; float64, int64 or bool).
+    """
+
+    metadata: dict[str, Any] = {  # noqa: RUF012
+        "render_modes": ["rgb_array"],
+        "render_fps": 10,
+        "autoreset_mode": AutoresetMode.NEXT_STEP,
+    }
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        *,
+        max_episode_steps: int | None = None,
+        autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+        render_mode: str | None = None,
+        render_envs: int = 1,
+        env_class: type[gym.Env] = ActiveLocalizationEnv,
+        **env_kwargs: Any,
+    ) -> None:
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or (
+            num_envs < 1
+        ):
+            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        if max_episode_steps is not None and max_episode_steps < 1:
+            raise ValueError(f"max_episode_steps must be >= 1 or None, got {max_episode_steps}")
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        if not 1 <= render_envs <= num_envs:
+            raise ValueError(f"render_envs must be in [1, num_envs={num_envs}], got {render_envs}")
+        try:
+            self.autoreset_mode = AutoresetMode(autoreset_mode)
+        except ValueError:
+            modes = [m.value for m in AutoresetMode]
+            raise ValueError(
+                f"autoreset_mode must be one of {modes}, got {autoreset_mode!r}"
+            ) from None
+        self.num_envs = int(num_envs)
+        self.max_episode_steps = max_episode_steps
+        self.render_mode = render_mode
+        self.render_envs = render_envs
+        self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
+
+        template = env_class(**env_kwargs)
+        self.engine: BatchedLandmarkEngine | MemberEngine
+        if batched_core(template):
+            assert isinstance(template, ActiveLocalizationEnv)
+            self.engine = BatchedLandmarkEngine(template, self.num_envs, render_envs)
+            self._renderer: Any = None
+        else:
+            members = [template] + [env_class(**env_kwargs) for _ in range(1, self.num_envs)]
+            if render_mode is not None:
+                for b in range(render_envs):
+                    members[b] = env_class(render_mode=render_mode, **env_kwargs)
+            self.engine = MemberEngine(members)
+        self.single_observation_space = self.engine.single_observation_space
+        self.single_action_space = self.engine.single_action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+
+        n = self.num_envs
+        self._elapsed = np.zeros(n, dtype=np.int64)
+        self._needs_reset = np.zeros(n, dtype=np.bool_)  # ended last step (autoreset pending)
+        self._has_reset = False
+
+    # -- gymnasium API ----------------------------------------------------------------------
+
+    def reset(
+        self,
+        *,
+        seed: int | list[int | None] | None = None,
+        options: dict[str, Any] | None = None,
+    ) -> tuple[NDArray, BatchInfo]:
+        """Reset every sub-env (or those in ``options["reset_mask"]``); sub-env i gets
+        ``seed + i`` (an int seed) or ``seed[i]`` (a list)."""
+        n = self.num_envs
+        seeds = self._member_seeds(seed)
+        options = dict(options) if options is not None else None
+        mask = np.ones(n, dtype=np.bool_)
+        if options is not None and "reset_mask" in options:
+            mask = _check_reset_mask(options.pop("reset_mask"), n)
+        if not mask.all() and not self._has_reset:
+            raise RuntimeError("the first reset() must reset every sub-env (no reset_mask)")
+        for b in np.flatnonzero(mask):
+            self.engine.reset_member(int(b), seeds[b], options)
+        self._elapsed[mask] = 0
+        self._needs_reset[mask] = False
+        self._has_reset = True
+        return self.engine.obs.copy(), self.engine.infos(mask)
+
+    def step(
+        self, actions: Any
+    ) -> tuple[NDArray, NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], BatchInfo]:
+        if not self._has_reset:
+            raise RuntimeError("call reset() before step()")
+        engine = self.engine
+        n = self.num_envs
+        mode = self.autoreset_mode
+        if mode == AutoresetMode.DISABLED and self._needs_reset.any():
+            ended = np.flatnonzero(self._needs_reset).tolist()
+            raise RuntimeError(
+                f"sub-envs {ended} have ended and autoreset is disabled: reset them with "
+                "reset(options={'reset_mask': mask}) before stepping"
+            )
+        resetting = self._needs_reset if mode == AutoresetMode.NEXT_STEP else np.zeros(n, bool)
+        active = ~resetting
+        rewards, terminated, truncated = engine.step(actions, active)
+        self._elapsed[active] += 1
+        if self.max_episode_steps is not None:
+            truncated |= active & (self._elapsed >= self.max_episode_steps)
+        ended = terminated | truncated
+
+        if mode == AutoresetMode.SAME_STEP and ended.any():
+            final_obs = np.full(n, None, dtype=object)
+            for b in np.flatnonzero(ended):
+                final_obs[b] = engine.obs[b].copy()
+            final_info = engine.infos(ended)
+            for b in np.flatnonzero(ended):
+                engine.reset_member(int(b), None, None)
+            self._elapsed[ended] = 0
+            infos = engine.infos(np.ones(n, dtype=np.bool_))
+            infos.update(final_obs=final_obs, _final_obs=ended.copy(),
+                         final_info=final_info, _final_info=ended.copy())
+        else:
+            for b in np.flatnonzero(resetting):
+                engine.reset_member(int(b), None, None)
+            self._elapsed[resetting] = 0
+            infos = engine.infos(np.ones(n, dtype=np.bool_))
+        self._needs_reset = ended if mode != AutoresetMode.SAME_STEP else np.zeros(n, bool)
+        return engine.obs.copy(), rewards, terminated, truncated, infos
+
+    def render(self) -> NDArray[np.uint8] | None:
+        """The first sub-env's frame, or the first ``render_envs`` frames tiled in a grid."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
+            return None
+        if not self._has_reset:
+            raise RuntimeError("call reset() before render()")
+        frames = [self._member_frame(b) for b in range(self.render_envs)]
+        return tile_frames(frames)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        if isinstance(self.engine, MemberEngine):
+            for env in self.engine.envs:
+                env.close()
+        elif self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # -- helpers ----------------------------------------------------------------------------
+
+    def _member_frame(self, b: int) -> NDArray[np.uint8]:
+        engine = self.engine
+        if isinstance(engine, MemberEngine):
+            return engine.frame(b)
+        if self._renderer is None:
+            from active_loc.envs.rendering import LandmarkRenderer
+
+            self._renderer = LandmarkRenderer()
+        return self._renderer.render_rgb(engine.frame(b))
+
+    def _member_seeds(self, seed: int | list[int | None] | None) -> list[int | None]:
+        n = self.num_envs
+        if seed is None:
+            return [None] * n
+        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            return [int(seed) + i for i in range(n)]
+        seeds = list(seed)
+        if len(seeds) != n:
+            raise ValueError(f"a list of seeds needs one per sub-env ({n}), got {len(seeds)}")
+        return seeds
+
+
+def maze_vector_env(num_envs: int = 1, **kwargs: Any) -> ActiveLocalizationVectorEnv:
+    """The ``vector_entry_point`` of ``ActiveLoc/Maze-v0``."""
+    return ActiveLocalizationVectorEnv(num_envs, env_class=MazeEnv, **kwargs)
+
+
+def tile_frames(frames: list[NDArray[np.uint8]]) -> NDArray[np.uint8]:
+    """Frames ``(H, W, 3)`` of equal size in a near-square grid (black where none is left)."""
+    if len(frames) == 1:
+        return frames[0]
+    cols = math.ceil(math.sqrt(len(frames)))
+    rows = math.ceil(len(frames) / cols)
+    h, w, c = frames[0].shape
+    out = np.zeros((rows * h, cols * w, c), dtype=np.uint8)
+    for k, frame in enumerate(frames):
+        r, q = divmod(k, cols)
+        out[r * h : (r + 1) * h, q * w : (q + 1) * w] = frame
+    return out
+
+
+def _check_reset_mask(mask: Any, n: int) -> NDArray[np.bool_]:
+    if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (n,):
+        raise ValueError(
+            f"options['reset_mask'] must be a bool numpy array of shape ({n},), got {mask!r}"
+        )
+    if not mask.any():
+        raise ValueError("options['reset_mask'] selects no sub-env")
+    return mask

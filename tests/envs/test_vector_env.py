@@ -1,0 +1,207 @@
+"""The native vector env (``vectorization_mode="vector_entry_point"``) of every id.
+
+The reference is gymnasium's own ``SyncVectorEnv`` over single envs seeded seed + i: for every
+id and action type, and in each autoreset mode, the native vector env must give the same
+observations, rewards, flags and infos (values and dtypes), exactly.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+
+from active_loc.envs import ActiveLocalizationVectorEnv
+from active_loc.envs.vector_engines import BatchedLandmarkEngine, MemberEngine
+from tests.envs.test_envs import CASES, ENV_IDS, vector_actions
+
+N_ENVS = 3
+#: a short limit, so that every sub-env ends (and is reset) several times in a test
+LIMIT = 8
+#: ids stepped by one batched kernel call; every other id steps its members in turn
+BATCHED_IDS = {"ActiveLoc/Textbook-v0", "ActiveLoc/LandmarkEKF-v0"}
+
+
+def make_pair(
+    env_id: str, mode: AutoresetMode, **kwargs: Any
+) -> tuple[gym.vector.VectorEnv, gym.vector.VectorEnv]:
+    """(native, gymnasium's SyncVectorEnv) with the same kwargs and autoreset mode."""
+    native = gym.make_vec(
+        env_id, N_ENVS, vectorization_mode="vector_entry_point", autoreset_mode=mode,
+        max_episode_steps=LIMIT, **kwargs,
+    )
+    sync = gym.make_vec(
+        env_id, N_ENVS, vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode},
+        max_episode_steps=LIMIT, **kwargs,
+    )
+    return native, sync
+
+
+def assert_infos_equal(native: dict[str, Any], sync: dict[str, Any]) -> None:
+    """Same keys and masks; where a mask is set, the same values and dtypes (rows a mask
+    leaves out are not compared: SyncVectorEnv leaves zeros there)."""
+    assert native.keys() == sync.keys()
+    for key, value in native.items():
+        if key.startswith("_"):
+            continue
+        mask = native[f"_{key}"]
+        assert np.array_equal(mask, sync[f"_{key}"]), key
+        if isinstance(value, dict):
+            assert_infos_equal(value, sync[key])
+        elif value.dtype == object:  # final_obs
+            for b in np.flatnonzero(mask):
+                assert np.array_equal(value[b], sync[key][b]), key
+        else:
+            assert value.dtype == sync[key].dtype, (key, value.dtype, sync[key].dtype)
+            assert np.array_equal(value[mask], sync[key][mask], equal_nan=True), key
+
+
+def assert_same(native_result: tuple, sync_result: tuple) -> None:
+    *arrays_n, info_n = native_result
+    *arrays_s, info_s = sync_result
+    for part_n, part_s in zip(arrays_n, arrays_s, strict=True):
+        assert part_n.dtype == part_s.dtype
+        assert np.array_equal(part_n, part_s)
+    assert_infos_equal(info_n, info_s)
+
+
+def run_pair(native: Any, sync: Any, steps: int, seed: int = 5) -> int:
+    """Step both with the same random actions; returns how many episodes ended."""
+    assert_same(native.reset(seed=seed), sync.reset(seed=seed))
+    rng = np.random.default_rng(seed)
+    ended = 0
+    for _ in range(steps):
+        actions = vector_actions(native.action_space, rng)
+        result = native.step(actions)
+        assert_same(result, sync.step(actions))
+        ended += int(np.sum(result[2] | result[3]))
+    return ended
+
+
+@pytest.mark.parametrize(("env_id", "action_type"), CASES)
+def test_native_equals_single_envs(env_id: str, action_type: str) -> None:
+    native, sync = make_pair(env_id, AutoresetMode.NEXT_STEP, action_type=action_type)
+    assert isinstance(native, ActiveLocalizationVectorEnv)
+    assert native.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+    engine = BatchedLandmarkEngine if env_id in BATCHED_IDS else MemberEngine
+    assert isinstance(native.engine, engine)
+    assert native.single_observation_space == sync.single_observation_space
+    assert native.action_space == sync.action_space
+    ended = run_pair(native, sync, 3 * LIMIT)
+    assert ended >= N_ENVS  # autoreset was exercised
+    native.close()
+    sync.close()
+
+
+@pytest.mark.parametrize("env_id", ["ActiveLoc/LandmarkEKF-v0", "ActiveLoc/GridMarkov-v0"])
+def test_same_step_autoreset_reports_final_obs_and_info(env_id: str) -> None:
+    native, sync = make_pair(env_id, AutoresetMode.SAME_STEP)
+    assert native.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
+    native.reset(seed=1)
+    sync.reset(seed=1)
+    rng = np.random.default_rng(1)
+    saw_final = False
+    for _ in range(2 * LIMIT):
+        actions = vector_actions(native.action_space, rng)
+        result = native.step(actions)
+        assert_same(result, sync.step(actions))
+        info = result[4]
+        if (result[2] | result[3]).any():
+            saw_final = True
+            assert np.array_equal(info["_final_obs"], result[2] | result[3])
+            assert set(info["final_info"]) >= {"pose_error", "entropy", "is_success"}
+    assert saw_final
+
+
+@pytest.mark.parametrize("env_id", ["ActiveLoc/LandmarkEKF-v0", "ActiveLoc/Maze-v0"])
+def test_disabled_autoreset_resets_only_the_masked_envs(env_id: str) -> None:
+    native, sync = make_pair(env_id, AutoresetMode.DISABLED)
+    native.reset(seed=2)
+    sync.reset(seed=2)
+    rng = np.random.default_rng(2)
+    for _ in range(3 * LIMIT):
+        actions = vector_actions(native.action_space, rng)
+        result = native.step(actions)
+        assert_same(result, sync.step(actions))
+        ended = result[2] | result[3]
+        if ended.any():
+            with pytest.raises(RuntimeError, match="reset_mask"):
+                native.step(actions)
+            mask = ended.copy()
+            assert_same(native.reset(options={"reset_mask": mask}),
+                        sync.reset(options={"reset_mask": mask.copy()}))
+
+
+def test_every_id_has_the_native_vector_env() -> None:
+    for env_id in ENV_IDS:
+        assert gym.spec(env_id).vector_entry_point is not None, env_id
+
+
+def test_seeds_list_and_none() -> None:
+    native = gym.make_vec("ActiveLoc/LandmarkEKF-v0", 2, vectorization_mode="vector_entry_point")
+    single = gym.make("ActiveLoc/LandmarkEKF-v0")
+    obs, _ = native.reset(seed=[11, 3])
+    assert np.array_equal(obs[1], single.reset(seed=3)[0])
+    assert np.array_equal(obs[0], single.reset(seed=11)[0])
+    unseeded_a, _ = native.reset()
+    unseeded_b, _ = native.reset()
+    assert not np.array_equal(unseeded_a, unseeded_b)
+    with pytest.raises(ValueError, match="one per sub-env"):
+        native.reset(seed=[1, 2, 3])
+
+
+def test_info_keys_and_dtypes_are_stable() -> None:
+    native = gym.make_vec("ActiveLoc/GridMarkov-v0", 2, vectorization_mode="vector_entry_point",
+                          max_episode_steps=5, action_type="discrete")
+    _, info = native.reset(seed=0)
+    layout = {key: value.dtype for key, value in info.items() if not isinstance(value, dict)}
+    rng = np.random.default_rng(0)
+    for _ in range(12):
+        info = native.step(vector_actions(native.action_space, rng))[4]
+        assert {k: v.dtype for k, v in info.items() if not isinstance(v, dict)} == layout
+        assert all(info[f"_{key}"].all() for key in layout if not key.startswith("_"))
+
+
+@pytest.mark.parametrize(("env_id", "tiles"), [("ActiveLoc/LandmarkEKF-v0", 1),
+                                               ("ActiveLoc/LandmarkEKF-v0", 4),
+                                               ("ActiveLoc/Maze-v0", 3)])
+def test_render_first_env_or_tiled(env_id: str, tiles: int) -> None:
+    native = gym.make_vec(env_id, 4, vectorization_mode="vector_entry_point",
+                          render_mode="rgb_array", render_envs=tiles)
+    single = gym.make(env_id, render_mode="rgb_array")
+    native.reset(seed=0)
+    single.reset(seed=0)
+    frame = native.render()
+    reference = single.render()
+    assert frame.dtype == np.uint8
+    if tiles == 1:
+        assert frame.shape == reference.shape
+    else:
+        h, w, _ = reference.shape
+        assert frame.shape == (2 * h, 2 * w, 3)  # 3 or 4 frames: a 2 x 2 grid
+        assert frame[h:, w:].max() == (255 if tiles == 4 else 0)  # the 4th tile: empty or not
+
+
+def test_bad_input_is_named() -> None:
+    native = gym.make_vec("ActiveLoc/LandmarkEKF-v0", 2, vectorization_mode="vector_entry_point")
+    with pytest.raises(RuntimeError, match="reset"):
+        native.step(np.zeros((2, 2), dtype=np.float32))
+    native.reset(seed=0)
+    with pytest.raises(ValueError, match=r"shape \(2, 2\)"):
+        native.step(np.zeros((3, 2), dtype=np.float32))
+    with pytest.raises(ValueError, match="sub-env 1 contains NaN"):
+        native.step(np.array([[0.0, 0.0], [np.nan, 0.0]]))
+    with pytest.raises(ValueError, match="reset_mask"):
+        native.reset(options={"reset_mask": np.array([1, 0])})
+    with pytest.raises(ValueError, match="num_envs"):
+        ActiveLocalizationVectorEnv(0)
+    with pytest.raises(ValueError, match="autoreset_mode"):
+        ActiveLocalizationVectorEnv(2, autoreset_mode="sometimes")
+    discrete = gym.make_vec("ActiveLoc/LandmarkEKF-v0", 2, vectorization_mode="vector_entry_point",
+                            action_type="discrete")
+    discrete.reset(seed=0)
+    with pytest.raises(ValueError, match=r"sub-env 0 must be in \[0, 6\)"):
+        discrete.step(np.array([7, 0]))

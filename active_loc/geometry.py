@@ -26,7 +26,7 @@ def wrap_angle(angle: ArrayLike) -> NDArray[np.float64]:
     return np.where((angle >= -np.pi) & (angle < np.pi), angle, wrapped)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def wrap_angle_scalar(angle: float) -> float:
     """Wrap one angle (rad) to ``[-pi, pi)``; the kernel twin of :func:`wrap_angle`."""
     if -np.pi <= angle < np.pi:

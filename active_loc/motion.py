@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from active_loc.geometry import wrap_angle, wrap_angle_scalar
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def unicycle_mean(pose: NDArray, v: float, omega: float, dt: float, out: NDArray) -> None:
     """Noise-free motion f(pose, u) of one pose ``(3,)`` into ``out`` ``(3,)`` (may alias)."""
     theta = pose[2]
@@ -35,7 +35,7 @@ def unicycle_mean(pose: NDArray, v: float, omega: float, dt: float, out: NDArray
     out[2] = wrap_angle_scalar(theta + omega * dt)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def unicycle_jacobian(theta: float, v: float, dt: float, out: NDArray) -> None:
     """Jacobian F = df/dpose ``(3, 3)`` at heading ``theta`` (rad) into ``out``."""
     out[:, :] = 0.0
@@ -46,7 +46,7 @@ def unicycle_jacobian(theta: float, v: float, dt: float, out: NDArray) -> None:
     out[1, 2] = v * np.cos(theta) * dt
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def move_within_bounds(
     pose: NDArray,
     v: float,
@@ -71,7 +71,7 @@ def move_within_bounds(
     return move_within_bounds_scalar(pose, v, omega, dt, e_x, e_y, e_theta, bounds, walls)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def move_within_bounds_scalar(
     pose: NDArray,
     v: float,

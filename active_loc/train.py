@@ -14,8 +14,9 @@ The output folder (``--out``, default ``runs/<env name>-<algo>-<seed>``) holds:
 * ``learning_curve.png``: episode return and success rate against timesteps, training
   (Monitor files) and evaluation;
 * ``tb/``: tensorboard logs (``tensorboard --logdir runs``); ``monitor/``: one Monitor CSV per
-  training env; ``checkpoints/``: periodic checkpoints; ``eval/``: the evaluation env's
-  Monitor CSV, ``evaluations.npz`` and ``best_model.zip``.
+  training env (one for all of them with ``--vec-env native``); ``checkpoints/``: periodic
+  checkpoints; ``eval/``: the evaluation env's Monitor CSV, ``evaluations.npz`` and
+  ``best_model.zip``.
 
 Evaluations replay the same seeded episodes every time (deterministic actions), so their
 success rates compare across the run; SB3's ``EvalCallback`` logs them as
@@ -50,11 +51,12 @@ from stable_baselines3.common.callbacks import (
 )
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.utils import set_random_seed
-from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
 import active_loc
 from active_loc.agents.sb3 import ALGORITHMS, CONFIG_FILE, MODEL_FILE, algorithm_class
 from active_loc.envs.registration import ENTRY_POINT, MAZE_ID
+from active_loc.integrations.sb3 import make_native_vec_env
 from active_loc.policies import PooledBeliefCNN, SmallCNN
 
 Algo = Literal["ppo", "a2c", "dqn", "sac", "recurrent_ppo"]
@@ -129,8 +131,10 @@ class TrainArgs:
     """Episodes per evaluation (the same seeded episodes every time)."""
     checkpoint_freq: int = 50_000
     """Save a checkpoint every this many steps (summed over envs); 0: never."""
-    vec_env: Literal["dummy", "subproc"] = "dummy"
-    """dummy: the envs in this process; subproc: one process per env."""
+    vec_env: Literal["dummy", "subproc", "native"] = "dummy"
+    """dummy: the envs in this process; subproc: one process per env; native: the package's
+    own vector env (active_loc.integrations.sb3), in this process, one batched kernel call per
+    step for the EKF landmark ids (one Monitor CSV for all training envs)."""
     device: str = "cpu"
     """Torch device."""
     torch_threads: int = 1
@@ -559,6 +563,37 @@ def eval_summary(out: Path) -> dict[str, Any] | None:
 # --- training ----------------------------------------------------------------------------------
 
 
+def make_train_envs(
+    args: TrainArgs, env_kwargs: dict[str, Any], info_keywords: tuple[str, ...], out: Path,
+    eval_seed: int,
+) -> tuple[VecEnv, VecEnv]:
+    """The training envs (``args.n_envs``, seeded ``args.seed + i``) and the eval env (one,
+    seeded ``eval_seed``), both monitored: Monitor CSVs in ``out/monitor`` and ``out/eval``."""
+    if args.vec_env == "native":
+        # VecMonitor over the vector env: one CSV ("0.monitor.csv") for all its sub-envs
+        vec_env = make_native_vec_env(
+            args.env, args.n_envs, seed=args.seed, env_kwargs=env_kwargs, monitor=True,
+            info_keywords=info_keywords, monitor_file=str(out / "monitor" / "0"),
+        )
+        eval_env = make_native_vec_env(
+            args.env, 1, seed=eval_seed, env_kwargs=env_kwargs, monitor=True,
+            info_keywords=info_keywords, monitor_file=str(out / "eval" / "0"),
+        )
+        return vec_env, eval_env
+    vec_env_cls = SubprocVecEnv if args.vec_env == "subproc" else DummyVecEnv
+    env_fn = partial(make_env, args.env)
+    monitor_kwargs = {"info_keywords": info_keywords}
+    vec_env = make_vec_env(
+        env_fn, n_envs=args.n_envs, seed=args.seed, env_kwargs=env_kwargs,
+        monitor_dir=str(out / "monitor"), monitor_kwargs=monitor_kwargs, vec_env_cls=vec_env_cls,
+    )
+    eval_env = make_vec_env(
+        env_fn, n_envs=1, seed=eval_seed, env_kwargs=env_kwargs,
+        monitor_dir=str(out / "eval"), monitor_kwargs=monitor_kwargs, vec_env_cls=vec_env_cls,
+    )
+    return vec_env, eval_env
+
+
 def train(args: TrainArgs) -> Path:
     """Train as ``args`` say; returns the output folder."""
     check_args(args)
@@ -597,17 +632,7 @@ def train(args: TrainArgs) -> Path:
     config_file = out / CONFIG_FILE
     config_file.write_text(json.dumps(config, indent=2) + "\n")
 
-    vec_env_cls = SubprocVecEnv if args.vec_env == "subproc" else DummyVecEnv
-    env_fn = partial(make_env, args.env)
-    monitor_kwargs = {"info_keywords": info_keywords}
-    vec_env = make_vec_env(
-        env_fn, n_envs=args.n_envs, seed=args.seed, env_kwargs=env_kwargs,
-        monitor_dir=str(out / "monitor"), monitor_kwargs=monitor_kwargs, vec_env_cls=vec_env_cls,
-    )
-    eval_env = make_vec_env(
-        env_fn, n_envs=1, seed=eval_seed, env_kwargs=env_kwargs,
-        monitor_dir=str(out / "eval"), monitor_kwargs=monitor_kwargs, vec_env_cls=vec_env_cls,
-    )
+    vec_env, eval_env = make_train_envs(args, env_kwargs, info_keywords, out, eval_seed)
 
     model = algo_cls(
         policy, vec_env, policy_kwargs=policy_kwargs, seed=args.seed, device=args.device,

@@ -121,6 +121,22 @@ def test_sac_run_on_continuous_landmark_ekf(tmp_path: Path) -> None:
     env.close()
 
 
+def test_ppo_run_with_the_native_vec_env(tmp_path: Path) -> None:
+    args = TrainArgs(env="ActiveLoc/LandmarkEKF-v0", algo="ppo", total_steps=256, n_steps=64,
+                     vec_env="native", out=tmp_path, **TINY)
+    out = train(args)
+    assert (out / "model.zip").is_file() and (out / "config.json").is_file()
+    config = json.loads((out / "config.json").read_text())
+    assert config["args"]["vec_env"] == "native"
+    assert config["result"]["timesteps"] >= 256
+    assert config["result"]["eval"]["evaluations"] >= 1
+    # one VecMonitor CSV for both training envs, with the info keywords
+    header = (out / "monitor" / "0.monitor.csv").read_text().splitlines()[1].split(",")
+    assert {"is_success", "entropy", "pose_error"} <= set(header)
+    assert (out / "eval" / "0.monitor.csv").is_file()
+    assert type(SB3Agent.load(out).model).__name__ == "PPO"
+
+
 def test_dqn_with_continuous_actions_is_a_clear_error(tmp_path: Path) -> None:
     args = TrainArgs(env="ActiveLoc/LandmarkEKF-v0", algo="dqn", out=tmp_path,
                      env_kwargs='{"action_type": "continuous"}')

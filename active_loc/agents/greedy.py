@@ -1,8 +1,9 @@
 """One-step information gain: the action whose expected posterior entropy is lowest.
 
 Active localization as Burgard, Fox and Thrun posed it ("Active mobile robot localization",
-IJCAI 1997): score each action by the entropy the belief is expected to have after it, and
-take the best.
+IJCAI 1997): score each action by the entropy the belief is expected to have after it (plus
+the env's collision penalty, weighted by the chance that the move is blocked), and take the
+best.
 """
 
 from __future__ import annotations
@@ -13,13 +14,14 @@ import numpy as np
 
 from active_loc.agents.planning import (
     candidate_actions,
-    mean_entropy_after,
+    expected_cost_after,
     planning_belief,
 )
 
 
 class GreedyInfoGainAgent:
-    """Picks ``argmin_a E[H(b' | a)]`` over the candidate actions, one step ahead.
+    """Picks ``argmin_a E[H(b' | a)] + c P(blocked | a)`` over the candidate actions, one step
+    ahead, where c is the env's collision penalty: the action of highest expected reward.
 
     The expectation is exact in ``Maze-v0`` (every depth reading enumerated) and for the EKF
     (the posterior covariance depends only on which landmarks are in view; ``n_hypotheses``
@@ -41,12 +43,13 @@ class GreedyInfoGainAgent:
         self.rng = np.random.default_rng(seed)
 
     def scores(self, view: Any) -> tuple[list[Any], np.ndarray]:
-        """The candidate actions and their expected posterior entropies (nats)."""
+        """The candidate actions and their expected posterior entropies plus expected collision
+        penalties (nats)."""
         actions = candidate_actions(view)
         belief = planning_belief(view.belief, self.max_particles, self.rng)
         seed = int(self.rng.integers(2**63))  # common random numbers across the actions
         values = np.array([
-            mean_entropy_after(view, a, belief, self.n_hypotheses, seed) for a in actions
+            expected_cost_after(view, a, belief, self.n_hypotheses, seed) for a in actions
         ])
         return actions, values
 

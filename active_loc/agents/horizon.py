@@ -6,7 +6,8 @@ after getting there plus the cost of the trip. Here that is a k-step lookahead:
 
 * in ``Maze-v0``, an exact expectimax tree over all action sequences and depth readings;
 * with continuous robots, sampled rollouts of macro-actions (one motion primitive held for k
-  steps), scored by the mean final entropy over the rollouts.
+  steps), scored by the mean over the rollouts of the summed entropies (plus the env's
+  collision penalty on every step a rollout bumps into a wall).
 
 A longer view is what keeps it out of the one-step agent's dithering (turn left, turn right,
 ...): a turn pair that gains nothing now is compared with sequences that reach something
@@ -21,6 +22,7 @@ import numpy as np
 
 from active_loc.agents.planning import (
     candidate_actions,
+    collision_penalty_of,
     entropy_of,
     planning_belief,
     travel_of,
@@ -28,8 +30,9 @@ from active_loc.agents.planning import (
 
 
 class HorizonPlannerAgent:
-    """Minimizes ``E[H(b_{t+1}) + ... + H(b_{t+k})] + travel_cost * distance`` over k-step
-    plans. Summing the entropies along the plan, not just the last one, makes information
+    """Minimizes ``E[H(b_{t+1}) + ... + H(b_{t+k})] + travel_cost * distance`` (plus the
+    collision penalty times the expected number of bumps) over k-step plans. Summing the
+    entropies along the plan, not just the last one, makes information
     gained sooner worth more: with the final entropy alone, a step wasted now (a move into a
     wall) costs nothing whenever the rest of the plan can still gain the same, and the
     re-planned agent wastes the next step too.
@@ -74,12 +77,13 @@ class HorizonPlannerAgent:
 
     def _rollout_value(self, view: Any, action: Any, belief: Any, seed: int) -> float:
         rng = np.random.default_rng(seed)
+        penalty = collision_penalty_of(view)
         total = 0.0
         for _ in range(self.n_rollouts):
             b = belief
             for _ in range(self.horizon):
-                b = view.simulate(action, b, rng)[0]
-                total += entropy_of(b)
+                b, _, _, blocked = view.hypothesize(action, b, rng)
+                total += entropy_of(b) + (penalty if blocked else 0.0)
         return total / self.n_rollouts + self.travel_cost * self.horizon * travel_of(view, action)
 
     def scores(self, view: Any) -> tuple[list[Any], np.ndarray]:

@@ -63,23 +63,34 @@ def planning_belief(belief: Any, max_particles: int, rng: np.random.Generator) -
     return out
 
 
-def mean_entropy_after(
+def collision_penalty_of(view: Any) -> float:
+    """The env's collision penalty (nats) as the view reports it; 0 for views without one."""
+    return float(getattr(view, "collision_penalty", 0.0))
+
+
+def expected_cost_after(
     view: Any, action: Any, belief: Any, n_hypotheses: int, seed: int
 ) -> float:
-    """Expected entropy (nats) of the belief after ``action``, one step ahead.
+    """``E[H(b')] + collision_penalty * P(blocked)`` after ``action``, one step ahead (nats).
 
-    Exact for the maze (every possible depth reading, weighted by its probability). Otherwise
-    the mean over ``n_hypotheses`` simulated measurements (a pose drawn from the predicted
-    belief, its scan, the update), drawn from a Generator seeded with ``seed``, so that every
-    action is scored on the same random numbers. For the EKF the posterior covariance does not
-    depend on the measured values, only on which landmarks are in view, so the hypotheses only
-    sample that.
+    Minimizing it maximizes the env's expected reward, information gain minus the collision
+    penalty (the step cost is the same for every action). Without the penalty term a planner
+    on a grid map happily drives into walls: the scan repeated from where it stopped still
+    lowers the entropy of a filter that takes its beams as independent.
+
+    Exact for the maze (every possible depth reading, weighted by its probability; its
+    reward has no collision term). Otherwise the mean over ``n_hypotheses`` simulated steps
+    (a pose drawn from the belief, moved, its scan, the update), drawn from a Generator seeded
+    with ``seed``, so that every action is scored on the same random numbers. For the EKF the
+    posterior covariance does not depend on the measured values, only on which landmarks are
+    in view, so the hypotheses only sample that.
     """
     if hasattr(view, "outcomes"):
         return sum(p * entropy_of(post) for _, p, post in view.outcomes(action, belief))
+    penalty = collision_penalty_of(view)
     rng = np.random.default_rng(seed)
     total = 0.0
     for _ in range(n_hypotheses):
-        after = view.simulate(action, belief, rng)[0]
-        total += entropy_of(after)
+        after, _, _, blocked = view.hypothesize(action, belief, rng)
+        total += entropy_of(after) + (penalty if blocked else 0.0)
     return total / n_hypotheses

@@ -57,7 +57,7 @@ def gate_threshold(gate: float | None) -> float:
     return -2.0 * math.log1p(-float(gate))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def associate(
     mu: NDArray,
     cov: NDArray,
@@ -137,7 +137,7 @@ def associate(
         index[i] = best if best_d2 <= threshold else count
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def associate_and_update(
     mu: NDArray,
     cov: NDArray,
@@ -172,7 +172,7 @@ def associate_and_update(
     return ekf_update(mu, cov, z[:n], matched, matched_landmarks, kind, noise_cov)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def associate_and_update_batch(
     mu: NDArray,
     cov: NDArray,

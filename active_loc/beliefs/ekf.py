@@ -25,7 +25,7 @@ from active_loc.motion import UnicycleModel, unicycle_mean
 from active_loc.sensors.landmarks import RANGE_BEARING, LandmarkSensor, measurement_and_jacobian
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def ekf_predict(
     mu: NDArray, cov: NDArray, v: float, omega: float, dt: float, noise_cov: NDArray
 ) -> None:
@@ -61,7 +61,7 @@ def ekf_predict(
     cov[2, 1] = cov[1, 2]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def ekf_update(
     mu: NDArray,
     cov: NDArray,
@@ -167,7 +167,7 @@ def ekf_update(
     return nis
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def ekf_predict_batch(
     mu: NDArray, cov: NDArray, controls: NDArray, dt: float, noise_cov: NDArray
 ) -> None:
@@ -176,7 +176,7 @@ def ekf_predict_batch(
         ekf_predict(mu[b], cov[b], controls[b, 0], controls[b, 1], dt, noise_cov)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def ekf_update_batch(
     mu: NDArray,
     cov: NDArray,

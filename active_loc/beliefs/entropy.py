@@ -31,7 +31,7 @@ def gaussian_entropy(cov: ArrayLike) -> NDArray[np.float64]:
     return 0.5 * (LOG_2PIE_3 + logdet)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def det3(a: NDArray) -> float:
     """Determinant of a ``(3, 3)`` matrix."""
     return (
@@ -41,7 +41,7 @@ def det3(a: NDArray) -> float:
     )
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def gaussian_entropy3(cov: NDArray) -> float:
     """Kernel twin of :func:`gaussian_entropy` for one ``(3, 3)`` covariance (nats)."""
     return 0.5 * (LOG_2PIE_3 + np.log(det3(cov)))

@@ -56,7 +56,7 @@ from active_loc.maps.occupancy import FREE, OccupancyGrid
 # --- kernels ---------------------------------------------------------------------------------
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _path_free(free: NDArray, b: int, x: int, y: int, dx: int, dy: int) -> bool:
     """Whether every cell of the straight path from ``(x, y)`` to ``(x + dx, y + dy)`` (the
     start excluded, cells rounded from the segment at ``max(|dx|, |dy|)`` evenly spaced
@@ -73,7 +73,7 @@ def _path_free(free: NDArray, b: int, x: int, y: int, dx: int, dy: int) -> bool:
     return True
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _stays(free: NDArray, b: int, x: int, y: int, dx: int, dy: int) -> bool:
     """Whether mass of cell ``(x, y)`` commanded to move by ``(dx, dy)`` cells stays where it
     is: no move, or a blocked one (one step: the target cell; longer: :func:`_path_free`)."""
@@ -86,7 +86,7 @@ def _stays(free: NDArray, b: int, x: int, y: int, dx: int, dy: int) -> bool:
     return not _path_free(free, b, x, y, dx, dy)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def predict_kernel(
     prob: NDArray,
     free: NDArray,
@@ -140,7 +140,7 @@ def predict_kernel(
                             out[b, tx, ty, th] += p * weights[k]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def predict_heading_kernel(
     prob: NDArray, free: NDArray, offsets: NDArray, weights: NDArray, out: NDArray
 ) -> None:
@@ -185,7 +185,7 @@ def predict_heading_kernel(
                             out[b, tx, ty, th] += p * w
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def translate_kernel(
     prob: NDArray,
     free: NDArray,
@@ -241,7 +241,7 @@ def translate_kernel(
                             out[b, tx, ty, h] += p * w
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def turn_kernel(
     prob: NDArray, free: NDArray, offsets: NDArray, weights: NDArray, out: NDArray
 ) -> None:
@@ -266,7 +266,7 @@ def turn_kernel(
                             out[b, x, y, (h + offsets[b, k]) % nh] += p * w
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def moments_kernel(
     prob: NDArray, xs: NDArray, ys: NDArray, thetas: NDArray, mean: NDArray, cov: NDArray
 ) -> None:
@@ -344,7 +344,7 @@ def clearance_map(free: NDArray[np.bool_]) -> NDArray[np.int64]:
     return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def uniform_kernel(prob: NDArray, free: NDArray, b: int) -> None:
     """Member ``b`` of ``prob`` ``(B, X, Y, H)`` uniform over its free poses."""
     nh = prob.shape[3]
@@ -361,7 +361,7 @@ def uniform_kernel(prob: NDArray, free: NDArray, b: int) -> None:
                 prob[b, x, y, h] = v
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def update_kernel(prob: NDArray, likelihood: NDArray, free: NDArray, evidence: NDArray) -> bool:
     """Correction in place: ``prob *= likelihood``, normalized per member.
 
@@ -412,7 +412,7 @@ def update_kernel(prob: NDArray, likelihood: NDArray, free: NDArray, evidence: N
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def entropy_kernel(prob: NDArray, log_cell_volume: float, out: NDArray) -> None:
     """``out[b] = -sum p log p + log_cell_volume`` (nats) of ``prob`` ``(B, X, Y, H)``."""
     nb, nx, ny, nh = prob.shape
@@ -427,7 +427,7 @@ def entropy_kernel(prob: NDArray, log_cell_volume: float, out: NDArray) -> None:
         out[b] = s + log_cell_volume
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def mode_kernel(prob: NDArray, index: NDArray, top: NDArray) -> None:
     """Most probable pose ``index[b] = (ix, iy, h)`` (the first in C order on ties) and its
     probability ``top[b]``."""
@@ -446,7 +446,7 @@ def mode_kernel(prob: NDArray, index: NDArray, top: NDArray) -> None:
         top[b] = best
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def stats_kernel(
     prob: NDArray, log_cell_volume: float, entropy: NDArray, index: NDArray, top: NDArray
 ) -> None:

@@ -48,14 +48,14 @@ _INV_SQRT_2PI = 1.0 / math.sqrt(2.0 * math.pi)
 _INV_SQRT_2 = 1.0 / math.sqrt(2.0)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _ramp_expectation(t: float, std: float) -> float:
     """``R(t) = E[max(0, t + n)]``, ``n ~ N(0, std^2)`` (std > 0)."""
     u = t / std
     return t * 0.5 * math.erfc(-u * _INV_SQRT_2) + std * _INV_SQRT_2PI * math.exp(-0.5 * u * u)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def axis_kernel(s: float, std: float, tol: float, margin: int, out: NDArray) -> int:
     """One axis: the weights ``out`` ``(2 + 2 margin,)`` of the cells ``first + j`` (returned
     ``first``) that a cell's mass reaches under a shift ``s`` with noise ``std`` (see
@@ -111,7 +111,7 @@ def axis_weights(
     return first, weights
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def translation_kernel_arrays(
     shift: NDArray, std_x: float, std_y: float, tol: float, margin_x: int, margin_y: int
 ) -> tuple[NDArray, NDArray]:
@@ -144,7 +144,7 @@ def translation_kernel_arrays(
             np.ascontiguousarray(weights[:, :, :k_max]))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def turn_kernel_arrays(
     turn: NDArray, std: float, tol: float, margin: int
 ) -> tuple[NDArray, NDArray]:

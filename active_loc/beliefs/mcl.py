@@ -209,7 +209,7 @@ class FreeSpace:
         return out
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def grid_cell(
     x: float, y: float, ox: float, oy: float, c: float, s: float, res: float, nx: int, ny: int
 ) -> int:
@@ -230,7 +230,7 @@ def grid_cell(
     return int(fy) * nx + int(fx)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def points_free(
     points: NDArray, values: NDArray, geom: NDArray, is_grid: bool, out: NDArray
 ) -> None:
@@ -252,7 +252,7 @@ def points_free(
             out[i] = x_min <= x <= x_max and y_min <= y <= y_max
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def sample_free_poses(
     u: NDArray, values: NDArray, geom: NDArray, is_grid: bool, free_cells: NDArray, out: NDArray
 ) -> None:
@@ -285,7 +285,7 @@ def sample_free_poses(
 # --- motion --------------------------------------------------------------------------------------
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def sample_motion(
     particles: NDArray,
     counts: NDArray,
@@ -323,7 +323,7 @@ def sample_motion(
             particles[b, k, 2] = wrap_angle_scalar(th + om * dt + l20 * n0 + l21 * n1 + l22 * n2)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def mask_free_space(
     particles: NDArray,
     log_w: NDArray,
@@ -355,7 +355,7 @@ def mask_free_space(
 # --- weights and resampling ----------------------------------------------------------------------
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def add_log_likelihood(log_w: NDArray, log_lik: NDArray) -> float:
     """Measurement update of the weights in place: ``log_w += log_lik``, then normalized.
 
@@ -388,7 +388,7 @@ def add_log_likelihood(log_w: NDArray, log_lik: NDArray) -> float:
     return shift + lse_post - lse_prior
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _cumulative_weights(log_w: NDArray, cdf: NDArray) -> tuple:
     """Running sums of the normalized weights into ``cdf`` ``(K,)``; returns ``(total, last)``
     with ``last`` the index of the last particle of positive weight (the search never goes
@@ -410,7 +410,7 @@ def _cumulative_weights(log_w: NDArray, cdf: NDArray) -> tuple:
     return running, last
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _positions_to_indices(cdf: NDArray, total: float, last: int, positions: NDArray,
                           out: NDArray) -> None:
     """For increasing positions in [0, 1), the particle whose cdf interval holds each one:
@@ -423,7 +423,7 @@ def _positions_to_indices(cdf: NDArray, total: float, last: int, positions: NDAr
         out[m] = i
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def systematic_resample(log_w: NDArray, u: float, out: NDArray) -> None:
     """Low-variance sampler (Thrun et al. 2005, table 4.4): indices ``out`` ``(M,)`` of the
     particles at positions ``(u + m) / M``, from one uniform ``u`` in [0, 1). Particle k gets
@@ -437,7 +437,7 @@ def systematic_resample(log_w: NDArray, u: float, out: NDArray) -> None:
     _positions_to_indices(cdf, total, last, positions, out)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def stratified_resample(log_w: NDArray, u: NDArray, out: NDArray) -> None:
     """Stratified resampling: indices ``out`` ``(M,)`` at positions ``(m + u_m) / M``, one
     uniform per stratum from ``u`` (``(>= M,)``, the first M are used)."""
@@ -450,7 +450,7 @@ def stratified_resample(log_w: NDArray, u: NDArray, out: NDArray) -> None:
     _positions_to_indices(cdf, total, last, positions, out)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def resample_particles(
     particles: NDArray,
     log_w: NDArray,
@@ -499,7 +499,7 @@ def resample_particles(
     return n_inj
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def kld_resample(
     particles: NDArray,
     log_w: NDArray,
@@ -581,7 +581,7 @@ def kld_resample(
 # --- landmark likelihood -------------------------------------------------------------------------
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _landmark_log_density(
     kind: int, x: float, y: float, th: float, mx: float, my: float, z0: float, z1: float,
     l00: float, l10: float, l11: float, log_norm: float,
@@ -597,7 +597,7 @@ def _landmark_log_density(
     return log_norm - 0.5 * (w0 * w0 + w1 * w1)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def landmark_log_likelihood_kernel(
     particles: NDArray,
     z: NDArray,

@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 ENTROPY_BINS = (0.25, 0.25, 2.0 * np.pi / 36.0)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def logsumexp(a: NDArray) -> float:
     """``log(sum(exp(a)))`` of a 1-D array, shifted by its maximum; ``-inf`` when every entry
     is ``-inf`` (or the array is empty)."""
@@ -50,7 +50,7 @@ def logsumexp(a: NDArray) -> float:
     return m + np.log(s)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def normalize_log_weights(log_w: NDArray) -> float:
     """Normalize ``log_w`` ``(K,)`` in place so that ``sum(exp(log_w)) = 1``.
 
@@ -66,7 +66,7 @@ def normalize_log_weights(log_w: NDArray) -> float:
     return lse
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def normalized_weights(log_w: NDArray, out: NDArray) -> None:
     """Linear weights ``(K,)`` summing to one into ``out``; uniform if every weight is zero."""
     k = log_w.shape[0]
@@ -79,7 +79,7 @@ def normalized_weights(log_w: NDArray, out: NDArray) -> None:
         out[i] = np.exp(log_w[i] - lse)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def effective_sample_size(log_w: NDArray) -> float:
     """Kish's effective sample size ``1 / sum w_k^2`` of the normalized weights; 0 when every
     weight is zero, ``K`` when they are uniform, 1 when one particle holds all the mass."""
@@ -92,7 +92,7 @@ def effective_sample_size(log_w: NDArray) -> float:
     return 1.0 / s
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def weighted_mean(particles: NDArray, log_w: NDArray, out: NDArray) -> None:
     """Weighted mean pose ``(3,)`` into ``out``: arithmetic in x and y, circular in theta
     (``atan2(sum w sin, sum w cos)``, so a cloud across the +-pi seam averages to ~pi, not 0)."""
@@ -116,7 +116,7 @@ def weighted_mean(particles: NDArray, log_w: NDArray, out: NDArray) -> None:
     out[2] = th if th < np.pi else -np.pi  # atan2 may return +pi; headings live in [-pi, pi)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def weighted_covariance(particles: NDArray, log_w: NDArray, mean: NDArray, out: NDArray) -> None:
     """Weighted covariance ``(3, 3)`` about ``mean`` ``(3,)`` into ``out``.
 
@@ -157,7 +157,7 @@ def weighted_covariance(particles: NDArray, log_w: NDArray, mean: NDArray, out: 
 # --- a hash table of integer pose bins ------------------------------------------------------------
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def table_size(n: int) -> int:
     """Size of a hash table for up to ``n`` distinct bins: a power of two >= 2 n, so that
     linear probing stays short."""
@@ -167,7 +167,7 @@ def table_size(n: int) -> int:
     return size
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def pose_bin(x: float, y: float, theta: float, dx: float, dy: float, dth: float) -> tuple:
     """Integer bin ``(ix, iy, ith)`` of a pose on the grid of cells ``(dx, dy, dth)``."""
     return (
@@ -177,7 +177,7 @@ def pose_bin(x: float, y: float, theta: float, dx: float, dy: float, dth: float)
     )
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def bin_hash(b0: int, b1: int, b2: int, mask: int) -> int:
     """First probe slot of bin ``(b0, b1, b2)`` in a table of size ``mask + 1``."""
     # int64 products wrap around in numba: fine for a hash
@@ -189,7 +189,7 @@ def bin_hash(b0: int, b1: int, b2: int, mask: int) -> int:
 # time, which made these loops several times slower.
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def assign_bins(particles: NDArray, dx: float, dy: float, dth: float, ids: NDArray) -> int:
     """Compact bin ids ``ids`` ``(K,)`` of poses ``(K, 3)`` on the grid of cells
     ``(dx, dy, dth)``, numbered 0, 1, ... in order of first appearance; returns the number of
@@ -215,7 +215,7 @@ def assign_bins(particles: NDArray, dx: float, dy: float, dth: float, ids: NDArr
     return n_bins
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def histogram_entropy(
     particles: NDArray, log_w: NDArray, dx: float, dy: float, dth: float
 ) -> float:
@@ -243,7 +243,7 @@ def histogram_entropy(
     return h + np.log(dx * dy * dth)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def kld_limit(k: int, min_particles: int, max_particles: int, err: float, z: float) -> int:
     """Particle count that bounds the KL divergence for ``k`` occupied bins (Fox 2003).
 

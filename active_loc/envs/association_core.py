@@ -98,7 +98,7 @@ N_DETECTION_PARAMS = 5
 N_ASSOCIATION = 7
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _score_association(
     n: int, count: int, truth: NDArray, index: NDArray, out: NDArray
 ) -> None:
@@ -131,7 +131,7 @@ def _score_association(
     out[A_MATCHED] = matched
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _write_detection_slots(kind: int, z: NDArray, n: int, world: NDArray) -> None:
     """The observation's measurement slots: the detections ``z[:n]`` by increasing distance,
     as many as there are slots, into the measurement columns of ``world`` ``(N, WORLD_SIZE)``."""
@@ -152,7 +152,7 @@ def _write_detection_slots(kind: int, z: NDArray, n: int, world: NDArray) -> Non
             world[s, W_VISIBLE] = 0.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def association_step_batch(
     actions: NDArray,
     params: NDArray,

@@ -186,7 +186,7 @@ def fixed_landmark_map(cfg: LocalizationConfig) -> LandmarkMap:
 # kernels
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _decode(action: NDArray, params: NDArray) -> tuple[float, float]:
     """Physical control of one action: continuous actions are clipped to [-1, 1] and scaled;
     otherwise the action already is the control (V m/s, omega rad/s)."""
@@ -198,7 +198,7 @@ def _decode(action: NDArray, params: NDArray) -> tuple[float, float]:
     return v, a_w * params[P_OMEGA]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _simulate_one(
     v: float, omega: float, noise: NDArray, params: NDArray, state: NDArray, world: NDArray
 ) -> bool:
@@ -226,7 +226,7 @@ def _simulate_one(
     return collided
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _finish_one(params: NDArray, state: NDArray, world: NDArray, obs: NDArray) -> None:
     """Metrics of the belief (errors against the truth are for info only), the uncertainty
     reward term against the previous values still in the row, and the observation row."""
@@ -270,7 +270,7 @@ def _finish_one(params: NDArray, state: NDArray, world: NDArray, obs: NDArray) -
     )
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def step_batch(
     actions: NDArray, params: NDArray, noise: NDArray, state: NDArray, world: NDArray,
     obs: NDArray, active: NDArray,
@@ -326,14 +326,14 @@ def step_batch(
     return -1
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def finish_batch(params: NDArray, state: NDArray, world: NDArray, obs: NDArray) -> None:
     """Metrics and observations of the whole batch (after an external belief update)."""
     for b in range(state.shape[0]):
         _finish_one(params, state[b], world[b], obs[b])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def reset_member_kernel(
     b: int,
     positions: NDArray,

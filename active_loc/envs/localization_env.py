@@ -265,6 +265,7 @@ class ActiveLocalizationEnv(gym.Env):
             known_correspondences=self.config.known_correspondences,
             association_gate=self.config.association_gate,
             likelihood_exponent=self.config.likelihood_exponent,
+            collision_penalty=self.config.collision_penalty,
         )
 
     # -- helpers ----------------------------------------------------------------------------

@@ -39,19 +39,19 @@ def belief_observation_size(max_landmarks: int) -> int:
     return BELIEF_HEADER + SLOT_SIZE * max_landmarks
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _clip1(x: float) -> float:
     return min(1.0, max(-1.0, x))
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _scaled_log_std(var: float) -> float:
     log_std = 0.5 * np.log(max(var, 1e-300))
     log_std = min(LOG_STD_MAX, max(LOG_STD_MIN, log_std))
     return 2.0 * (log_std - LOG_STD_MIN) / (LOG_STD_MAX - LOG_STD_MIN) - 1.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def write_belief_header(
     mean: NDArray, cov: NDArray, entropy: float, bounds: NDArray, out: NDArray
 ) -> None:
@@ -72,7 +72,7 @@ def write_belief_header(
     out[10] = _clip1(entropy / ENTROPY_SCALE)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def write_landmark_slots(
     mean: NDArray,
     z: NDArray,
@@ -117,7 +117,7 @@ def write_landmark_slots(
             out[base + 5] = 0.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def write_belief_observation(
     mean: NDArray,
     cov: NDArray,

@@ -45,6 +45,8 @@ class PlannerView:
             gate).
         likelihood_exponent: the power a grid belief's filter raises a scan's likelihood to
             (an MCL belief carries its own).
+        collision_penalty: what the env's reward subtracts on a blocked move (nats), so that
+            planners can weigh a bump against the information a step gains.
 
     It holds no configuration beyond that: a fixed start pose, for one, is the truth.
     """
@@ -59,6 +61,7 @@ class PlannerView:
     known_correspondences: bool = True
     association_gate: float | None = DEFAULT_GATE
     likelihood_exponent: float = 1.0
+    collision_penalty: float = 0.0
 
     def decode(self, action: object) -> NDArray[np.float64]:
         """Physical control (V m/s, omega rad/s) of an env action, as the env decodes it."""
@@ -67,6 +70,14 @@ class PlannerView:
     def simulate(
         self, action: object, belief: AnyBelief, rng: np.random.Generator
     ) -> tuple[AnyBelief, NDArray[np.float64], NDArray[np.bool_]]:
+        """One hypothetical step from ``belief``: the updated copy of the belief, the scan and
+        its visibility (:meth:`hypothesize` without whether the move was blocked)."""
+        out, z, visible, _ = self.hypothesize(action, belief, rng)
+        return out, z, visible
+
+    def hypothesize(
+        self, action: object, belief: AnyBelief, rng: np.random.Generator
+    ) -> tuple[AnyBelief, NDArray[np.float64], NDArray[np.bool_], bool]:
         """One hypothetical step from ``belief``: predict, then a measurement hypothesis.
 
         The pose that generates the hypothetical scan is drawn from the predicted belief
@@ -78,14 +89,16 @@ class PlannerView:
         poses, its likelihood raised to :attr:`likelihood_exponent` as the env's filter does.
 
         Returns:
-            The updated copy of the belief, the scan (landmarks ``(N, 2)``, lidar ``(M,)``) and
-            its visibility (``(N,)``; all True for the lidar).
+            The updated copy of the belief, the scan (landmarks ``(N, 2)``, lidar ``(M,)``),
+            its visibility (``(N,)``; all True for the lidar) and whether the hypothetical
+            robot's move was blocked by a wall (grid maps; False on landmark maps, whose
+            planners do not model the border).
         """
         out = belief.copy()
         control = self.decode(action)
         if isinstance(out, GridBelief):
-            z = self._simulate_grid(out, control, rng)
-            return out, z, np.ones(z.shape[0], dtype=np.bool_)
+            z, blocked = self._simulate_grid(out, control, rng)
+            return out, z, np.ones(z.shape[0], dtype=np.bool_), blocked
         if not isinstance(out, MCLBelief):
             out.predict(control[None])
             root = np.linalg.cholesky(out.cov[0] + 1e-12 * np.eye(3))
@@ -97,7 +110,7 @@ class PlannerView:
                 assert isinstance(out, EKFBelief)
                 update_with_association(out, z[visible], self.map.positions,
                                         self.association_gate)
-            return out, z, visible
+            return out, z, visible, False
         if isinstance(self.map, OccupancyGrid):
             # the robot's pose first: a move into a wall is blocked, and the robot knows it
             # (the env then predicts with V = 0), so bumping teaches the planner nothing
@@ -111,7 +124,7 @@ class PlannerView:
                 z, out.particles, arrays, self.map.distance_field()
             )
             out.update(log_lik, rng)
-            return out, z, np.ones(z.shape[0], dtype=np.bool_)
+            return out, z, np.ones(z.shape[0], dtype=np.bool_), blocked
         out.predict(control, rng)
         cumulative = np.cumsum(out.weights)
         pick = int(np.searchsorted(cumulative, rng.random() * cumulative[-1], side="right"))
@@ -121,7 +134,7 @@ class PlannerView:
             z, visible, self.map.positions, self.sensor, rng,
             known_correspondence=self.known_correspondences,
         )
-        return out, z, visible
+        return out, z, visible, False
 
     def _move(
         self, pose: NDArray[np.float64], control: NDArray[np.float64]
@@ -148,9 +161,9 @@ class PlannerView:
 
     def _simulate_grid(
         self, belief: GridBelief, control: NDArray[np.float64], rng: np.random.Generator
-    ) -> NDArray[np.float64]:
+    ) -> tuple[NDArray[np.float64], bool]:
         """Predict a grid belief with ``control``, scan from a cell pose drawn by its mass,
-        correct (in place); returns the scan ``(M,)``."""
+        correct (in place); returns the scan ``(M,)`` and whether the move was blocked."""
         assert isinstance(self.map, OccupancyGrid) and isinstance(self.sensor, LidarSensor)
         noise_std = np.sqrt(np.diag(self.motion.noise_cov))
         poses = belief.cell_poses()  # (X, Y, H, 3)
@@ -182,4 +195,4 @@ class PlannerView:
             full = np.full((nx, ny, nh), -np.inf)
             full[free] = log_lik.reshape(free_poses.shape[:2])
         belief.update_log(self.likelihood_exponent * full)
-        return z
+        return z, blocked

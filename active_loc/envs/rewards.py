@@ -21,7 +21,7 @@ import numba
 REWARD_CODES = {"info_gain": 0, "neg_entropy": 1, "logdet": 2, "trace": 3}
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def uncertainty_reward(
     code: int,
     prev_entropy: float,

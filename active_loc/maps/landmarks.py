@@ -131,7 +131,7 @@ def random_landmark_map(
     return LandmarkMap.trusted(chosen, (0.0, 0.0, width, height), walls)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _first_separated(
     uniforms: NDArray, count: int, min_separation: float, margin: float, width: float,
     height: float,

@@ -56,7 +56,7 @@ HEADING_STEPS.setflags(write=False)
 _MAX_ATTEMPTS_PER_MAZE = 200
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _same_set_right(labels: NDArray, i: int) -> bool:
     """Whether a cell right of ``i`` in the row shares its set."""
     for k in range(i + 1, labels.shape[0]):
@@ -65,14 +65,14 @@ def _same_set_right(labels: NDArray, i: int) -> bool:
     return False
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _merge(labels: NDArray, keep: int, drop: int) -> None:
     for k in range(labels.shape[0]):
         if labels[k] == drop:
             labels[k] = keep
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def eller_carve(
     u_join: NDArray, u_down: NDArray, p_join: float, p_down: float, walls: NDArray
 ) -> None:

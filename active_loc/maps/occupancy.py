@@ -484,7 +484,7 @@ _STATE_KEYS = frozenset({"values", "resolution", "origin", "unknown_reflects", "
 # --- numba kernels ---------------------------------------------------------------------------
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def world_to_grid(
     x: float,
     y: float,
@@ -502,7 +502,7 @@ def world_to_grid(
     return (cos_yaw * dx + sin_yaw * dy) / resolution, (-sin_yaw * dx + cos_yaw * dy) / resolution
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def cell_value(values: NDArray, gx: float, gy: float) -> int:
     """Value of the cell holding grid coordinates ``(gx, gy)``: ``FREE``, ``OCCUPIED``,
     ``UNKNOWN``, or ``OFF_MAP`` outside the ``(ny, nx)`` grid (and for NaN)."""

@@ -26,7 +26,7 @@ from active_loc.maps.occupancy import FREE, OccupancyGrid
 N_HEADINGS = 4
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def depth_table_kernel(free: NDArray, out: NDArray) -> None:
     """Depth ``out[ix, iy, h]`` (int64) of every pose of a ``(X, Y)`` bool free mask; 0 on
     occupied cells."""
@@ -45,7 +45,7 @@ def depth_table_kernel(free: NDArray, out: NDArray) -> None:
                 out[x, y, h] = d
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _indicator_kernel(table: NDArray, out: NDArray) -> None:
     """``out[z, ix, iy, h] = 1`` where ``table[ix, iy, h] == z >= 1`` (``out`` zeroed)."""
     nx, ny, nh = table.shape

@@ -66,7 +66,7 @@ def detection_draws(n_landmarks: int, max_clutter: int) -> tuple[int, int]:
     return 1 + 2 * n_landmarks + 3 * max_clutter, 2 * n_landmarks
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def sort_order(keys: NDArray, n: int, order: NDArray) -> None:
     """The permutation sorting ``keys[:n]`` ascending into ``order[:n]`` (an insertion sort:
     scans hold a few tens of detections, where it beats ``np.argsort`` many times over)."""
@@ -82,7 +82,7 @@ def sort_order(keys: NDArray, n: int, order: NDArray) -> None:
         order[j + 1] = current
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def simulate_detections(
     kind: int,
     pose: NDArray,

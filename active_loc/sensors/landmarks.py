@@ -26,7 +26,7 @@ RELATIVE_POSITION = 0
 RANGE_BEARING = 1
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def measurement(kind: int, x: float, y: float, theta: float, mx: float, my: float) -> tuple:
     """h(pose, m) of landmark ``(mx, my)`` seen from pose ``(x, y, theta)``: ``(z0, z1)``."""
     dx = mx - x
@@ -38,7 +38,7 @@ def measurement(kind: int, x: float, y: float, theta: float, mx: float, my: floa
     return np.sqrt(dx * dx + dy * dy), wrap_angle_scalar(np.arctan2(dy, dx) - theta)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def measurement_and_jacobian(
     kind: int, x: float, y: float, theta: float, mx: float, my: float
 ) -> tuple:
@@ -59,7 +59,7 @@ def measurement_and_jacobian(
     return r, bearing, -dx / r, -dy / r, 0.0, dy / q, -dx / q, -1.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def expected_measurement(
     kind: int, pose: NDArray, landmark: NDArray, z: NDArray, jac: NDArray
 ) -> None:
@@ -70,7 +70,7 @@ def expected_measurement(
     jac[1, 0], jac[1, 1], jac[1, 2] = out[5], out[6], out[7]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def in_view(
     x: float, y: float, theta: float, mx: float, my: float, fov: float, max_range: float
 ) -> bool:
@@ -86,7 +86,7 @@ def in_view(
     return abs(bearing) <= 0.5 * fov
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def measure_landmarks(
     kind: int,
     pose: NDArray,

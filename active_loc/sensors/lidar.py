@@ -69,13 +69,13 @@ GridArrays = tuple[NDArray[np.int8], float, float, float, float, float]
 # --------------------------------------------------------------------------- ray casting
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _reflects(value: int, unknown_reflects: bool) -> bool:
     """Whether a cell with occupancy ``value`` stops a beam."""
     return value >= OCCUPIED_THRESHOLD or (unknown_reflects and value < 0)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def cast_ray(
     values: NDArray,
     resolution: float,
@@ -210,7 +210,7 @@ def cast_ray(
             return max_range
 
 
-@numba.njit(cache=True, parallel=_PARALLEL)
+@numba.njit(cache=True, nogil=True, parallel=_PARALLEL)
 def cast_rays(
     values: NDArray,
     resolution: float,
@@ -248,7 +248,7 @@ def cast_rays(
 # --------------------------------------------------------------------------- beam model
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def beam_probability(
     z: float,
     expected: float,
@@ -296,7 +296,7 @@ def beam_probability(
     return max(p, PROB_FLOOR)
 
 
-@numba.njit(cache=True, parallel=_PARALLEL)
+@numba.njit(cache=True, nogil=True, parallel=_PARALLEL)
 def beam_model_log_likelihood(
     z: NDArray,
     expected: NDArray,
@@ -334,7 +334,7 @@ def beam_model_log_likelihood(
 # --------------------------------------------------------------------------- likelihood field
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def likelihood_field_log_likelihood(
     z: NDArray,
     beam_angles: NDArray,
@@ -382,7 +382,7 @@ def likelihood_field_log_likelihood(
     )
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def likelihood_field_log_table(
     distance_field: NDArray, max_range: float, z_hit: float, z_rand: float, sigma_hit: float
 ) -> NDArray:
@@ -402,7 +402,7 @@ def likelihood_field_log_table(
     return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _end_points_in_sensor_frame(
     z: NDArray, beam_angles: NDArray, max_range: float
 ) -> tuple[NDArray, NDArray, int]:
@@ -423,7 +423,7 @@ def _end_points_in_sensor_frame(
     return ex, ey, n_used
 
 
-@numba.njit(cache=True, parallel=_PARALLEL)
+@numba.njit(cache=True, nogil=True, parallel=_PARALLEL)
 def likelihood_field_table_log_likelihood(
     z: NDArray,
     beam_angles: NDArray,
@@ -464,7 +464,7 @@ def likelihood_field_table_log_likelihood(
         out[k] = total
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def likelihood_field_skip_log_likelihood(
     z: NDArray,
     beam_angles: NDArray,
@@ -536,7 +536,7 @@ def likelihood_field_skip_log_likelihood(
     return n_skipped
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def occlude_ranges(
     x: float, y: float, theta: float, beam_angles: NDArray, discs: NDArray, ranges: NDArray
 ) -> None:

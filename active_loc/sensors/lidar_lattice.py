@@ -40,7 +40,7 @@ def padded_table(log_table: NDArray, log_p_off_map: float) -> NDArray[np.float64
     return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def lattice_field_kernel(
     z: NDArray,
     beam_angles: NDArray,

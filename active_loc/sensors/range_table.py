@@ -39,7 +39,7 @@ RANGE_QUANTUM = 0.01
 _TWO_PI = 2.0 * math.pi
 
 
-@numba.njit(cache=True, parallel=_PARALLEL)
+@numba.njit(cache=True, nogil=True, parallel=_PARALLEL)
 def build_range_table(
     values: NDArray,
     resolution: float,
@@ -81,7 +81,7 @@ def build_range_table(
                 out[iy, ix, a] = int(r / quantum + 0.5)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def beam_log_prob_table(
     n_levels: int,
     quantum: float,
@@ -106,7 +106,7 @@ def beam_log_prob_table(
     return out
 
 
-@numba.njit(cache=True, parallel=_PARALLEL)
+@numba.njit(cache=True, nogil=True, parallel=_PARALLEL)
 def range_table_log_likelihood(
     z_levels: NDArray,
     beam_angles: NDArray,

@@ -1,0 +1,126 @@
+"""Env-steps per second of the native vector env, against CartPole-v1 and SyncVectorEnv.
+
+* ``LandmarkEKF-v0`` through ``make_vec(..., vectorization_mode="vector_entry_point")`` at
+  n = 1, 16, 256 and 1024, in env-steps per second (n per call), as a ratio to a single
+  CartPole-v1 env's steps per second measured in the same run.
+* Each MCL id at n = 16: the native vector env against gymnasium's ``SyncVectorEnv`` of the
+  same id, both with NEXT_STEP autoreset.
+
+Actions are drawn up front from a seeded Generator, autoreset is part of the timed loop, and
+each figure is the best of ``--repeats`` timings. It measures; it asserts nothing.
+
+    python benchmarks/bench_vector.py [--repeats 3] [--budget 4] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import time
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import active_loc  # noqa: F401  (registers the ids)
+
+EKF_ID = "ActiveLoc/LandmarkEKF-v0"
+EKF_SIZES = (1, 16, 256, 1024)
+MCL_IDS = (
+    "ActiveLoc/LandmarkMCL-v0",
+    "ActiveLoc/GridMCL-v0",
+    "ActiveLoc/GridMCLKidnapped-v0",
+    "ActiveLoc/GridMCLDynamic-v0",
+)
+MCL_N = 16
+
+
+def batch_actions(space: gym.Space, calls: int, seed: int = 0) -> list[Any]:
+    """``calls`` batches of actions of a vector action space, drawn up front."""
+    rng = np.random.default_rng(seed)
+    if isinstance(space, gym.spaces.MultiDiscrete):
+        return list(rng.integers(0, space.nvec, (calls, *space.shape)))
+    assert isinstance(space, gym.spaces.Box)
+    return list(rng.uniform(space.low, space.high, (calls, *space.shape)).astype(space.dtype))
+
+
+def vector_rate(envs: gym.vector.VectorEnv, repeats: int, budget_s: float) -> float:
+    """Best-of-``repeats`` env-steps per second (``num_envs`` per call) of a vector env.
+    Each timing runs as many calls as fit in ``budget_s`` (from a short probe)."""
+    envs.reset(seed=0)
+    probe = batch_actions(envs.action_space, 20)
+    for actions in probe:  # warm-up: numba compilation, caches
+        envs.step(actions)
+    start = time.perf_counter()
+    for actions in probe:
+        envs.step(actions)
+    per_call = (time.perf_counter() - start) / len(probe)
+    calls = max(20, int(budget_s / per_call))
+    actions = batch_actions(envs.action_space, calls, seed=1)
+    best = float("inf")
+    for _ in range(repeats):
+        envs.reset(seed=1)
+        start = time.perf_counter()
+        for batch in actions:
+            envs.step(batch)
+        best = min(best, time.perf_counter() - start)
+    envs.close()
+    return calls * envs.num_envs / best
+
+
+def cartpole_rate(repeats: int, steps: int = 50_000) -> float:
+    """Best-of-``repeats`` steps per second of one ``gymnasium.make("CartPole-v1")``."""
+    env = gym.make("CartPole-v1")
+    actions = np.random.default_rng(0).integers(2, size=steps).tolist()
+    best = float("inf")
+    for _ in range(repeats):
+        env.reset(seed=0)
+        start = time.perf_counter()
+        for action in actions:
+            _, _, terminated, truncated, _ = env.step(action)
+            if terminated or truncated:
+                env.reset()
+        best = min(best, time.perf_counter() - start)
+    return steps / best
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--budget", type=float, default=4.0, help="seconds per timing")
+    parser.add_argument("--json", default=None, help="also write the figures to this file")
+    args = parser.parse_args()
+
+    print(f"machine: {platform.processor() or platform.machine()}, "
+          f"python {platform.python_version()}, best of {args.repeats}\n")
+    results: dict[str, Any] = {}
+    baseline = cartpole_rate(args.repeats)
+    results["CartPole-v1"] = baseline
+    print(f"CartPole-v1 single env: {baseline:.0f} steps/s\n")
+
+    print(f"{EKF_ID} native vector env")
+    print(f"{'n':>6} {'env-steps/s':>12} {'x CartPole':>11}")
+    for n in EKF_SIZES:
+        envs = gym.make_vec(EKF_ID, n, vectorization_mode="vector_entry_point")
+        rate = vector_rate(envs, args.repeats, args.budget)
+        results[f"{EKF_ID} native n={n}"] = rate
+        print(f"{n:>6} {rate:>12.0f} {rate / baseline:>11.2f}")
+
+    print(f"\nMCL ids at n = {MCL_N}: native against SyncVectorEnv")
+    print(f"{'env':<32} {'sync':>9} {'native':>9} {'native/sync':>12}")
+    for env_id in MCL_IDS:
+        rates = {}
+        for mode in ("sync", "vector_entry_point"):
+            envs = gym.make_vec(env_id, MCL_N, vectorization_mode=mode)
+            rates[mode] = vector_rate(envs, args.repeats, args.budget)
+        sync, native = rates["sync"], rates["vector_entry_point"]
+        results[f"{env_id} n={MCL_N}"] = {"sync": sync, "native": native}
+        print(f"{env_id:<32} {sync:>9.0f} {native:>9.0f} {native / sync:>12.2f}")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(results, f, indent=2)
+
+
+if __name__ == "__main__":
+    main()

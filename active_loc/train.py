@@ -57,6 +57,7 @@ import active_loc
 from active_loc.agents.sb3 import ALGORITHMS, CONFIG_FILE, MODEL_FILE, algorithm_class
 from active_loc.envs.registration import ENTRY_POINT, MAZE_ID
 from active_loc.integrations.sb3 import make_native_vec_env
+from active_loc.integrations.timing import VecEnvTimer
 from active_loc.policies import PooledBeliefCNN, SmallCNN
 
 Algo = Literal["ppo", "a2c", "dqn", "sac", "recurrent_ppo"]
@@ -633,6 +634,8 @@ def train(args: TrainArgs) -> Path:
     config_file.write_text(json.dumps(config, indent=2) + "\n")
 
     vec_env, eval_env = make_train_envs(args, env_kwargs, info_keywords, out, eval_seed)
+    timer = VecEnvTimer(vec_env)
+    vec_env = timer
 
     model = algo_cls(
         policy, vec_env, policy_kwargs=policy_kwargs, seed=args.seed, device=args.device,
@@ -682,12 +685,14 @@ def train(args: TrainArgs) -> Path:
         "timesteps": int(model.num_timesteps),
         "wall_time_s": round(seconds, 2),
         "stopped_by_time_limit": stopped,
+        "env_time": timer.split(seconds),
         "eval": evaluation,
     }
     config_file.write_text(json.dumps(config, indent=2) + "\n")
 
     reason = " (stopped by the time limit)" if stopped else ""
-    print(f"trained {model.num_timesteps} steps in {seconds / 60:.1f} min{reason}")
+    print(f"trained {model.num_timesteps} steps in {seconds / 60:.1f} min{reason}; "
+          f"{100 * timer.env_seconds / seconds:.1f}% of it in the training envs")
     if evaluation is not None:
         line = (
             f"evaluation ({evaluation['episodes']} episodes, {evaluation['evaluations']} times): "

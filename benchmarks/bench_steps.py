@@ -21,6 +21,7 @@ import gymnasium as gym
 import numpy as np
 
 import active_loc
+from active_loc.envs.registration import OTHER_ENV_IDS
 
 
 def random_actions(space: gym.Space, steps: int, seed: int = 0) -> list:
@@ -84,6 +85,8 @@ def main() -> None:
     cases.append(
         ("ActiveLoc/Textbook-v0 filterpy", "ActiveLoc/Textbook-v0", {"ekf_backend": "filterpy"})
     )
+    for env_id, _, _, _ in OTHER_ENV_IDS:
+        cases.append((env_id, env_id, {}))
     if args.only:
         cases = [c for c in cases if c[0] == "CartPole-v1" or args.only in c[0]]
 

@@ -54,6 +54,9 @@ def test_train_py_smoke_run_writes_the_output_folder(maze_run: tuple[Path, str])
     assert "stable-baselines3" in config["versions"]
     assert config["result"]["timesteps"] >= 256
     assert config["result"]["eval"]["evaluations"] == 2
+    split = config["result"]["env_time"]  # the training envs' share of the wall time
+    assert 0.0 < split["env_s"] < split["total_s"]
+    assert split["env_share"] == pytest.approx(split["env_s"] / split["total_s"], abs=1e-3)
     # custom metrics reach the Monitor CSVs
     header = (out / "monitor" / "0.monitor.csv").read_text().splitlines()[1].split(",")
     assert {"is_success", "entropy", "pose_error", "collisions"} <= set(header)
@@ -206,3 +209,23 @@ def test_active_loc_train_forwards_to_the_training_cli(capsys: pytest.CaptureFix
     assert exit_info.value.code == 0
     text = capsys.readouterr().out
     assert "active-loc train" in text and "--total-steps" in text and "--algo" in text
+
+
+def test_pooled_belief_cnn_takes_any_maze_size_and_the_belief_up_to_scale() -> None:
+    import gymnasium as gym
+    import torch
+
+    from active_loc.policies import PooledBeliefCNN
+
+    torch.manual_seed(0)
+    extractor = PooledBeliefCNN(gym.spaces.Box(0.0, 1.0, (5, 7, 7)), features_dim=16)
+    rng = np.random.default_rng(0)
+    for n in (7, 15, 21):
+        obs = torch.as_tensor(rng.random((3, 5, n, n)), dtype=torch.float32)
+        features = extractor(obs)
+        assert features.shape == (3, 16)
+        scaled = obs.clone()
+        scaled[:, :4] *= 1e-3  # the same belief shape, 1000 times less mass per pose
+        assert torch.allclose(extractor(scaled), features, atol=1e-5)
+    with pytest.raises(ValueError, match="belief_channels"):
+        PooledBeliefCNN(gym.spaces.Box(0.0, 1.0, (5, 7, 7)), belief_channels=6)

@@ -16,6 +16,7 @@ seeded the same, so the vector env reproduces n single envs exactly.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import gymnasium as gym
@@ -190,10 +191,18 @@ class MemberEngine:
 
     Args:
         envs: the n members (unwrapped; the first ones built with a render mode render).
+        workers: threads that step the members, each its own share of them. The filters'
+            numba kernels release the GIL, so on a multi-core machine the members' particle
+            updates run side by side; 1 steps them in this thread. Every member uses only its
+            own arrays and Generator, so the results do not depend on ``workers``.
     """
 
-    def __init__(self, envs: list[gym.Env]) -> None:
+    def __init__(self, envs: list[gym.Env], workers: int = 1) -> None:
+        if workers < 1:
+            raise ValueError(f"workers must be >= 1, got {workers}")
         self.envs = envs
+        self.workers = min(int(workers), len(envs))
+        self._pool: ThreadPoolExecutor | None = None
         self.num_envs = len(envs)
         self.single_observation_space = envs[0].observation_space
         self.single_action_space = envs[0].action_space
@@ -215,11 +224,35 @@ class MemberEngine:
         rewards = np.zeros(n)
         terminated = np.zeros(n, dtype=np.bool_)
         truncated = np.zeros(n, dtype=np.bool_)
-        for b in np.flatnonzero(active):
-            obs, reward, term, trunc, self._infos[b] = self.envs[b].step(actions[b])
-            self.obs[b] = obs
-            rewards[b], terminated[b], truncated[b] = reward, term, trunc
+
+        def run(members: NDArray[np.intp]) -> None:
+            for b in members:
+                obs, reward, term, trunc, self._infos[b] = self.envs[b].step(actions[b])
+                self.obs[b] = obs
+                rewards[b], terminated[b], truncated[b] = reward, term, trunc
+
+        members = np.flatnonzero(active)
+        if self.workers == 1 or len(members) < 2:
+            run(members)
+        else:
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="active_loc")
+            shares = [members[k :: self.workers] for k in range(self.workers)]
+            for future in [self._pool.submit(run, share) for share in shares]:
+                future.result()  # re-raises a member's error (a bad action, say)
         return rewards, terminated, truncated
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+        for env in self.envs:
+            env.close()
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_pool"] = None  # threads do not pickle; a copy starts its own when it steps
+        return state
 
     def infos(self, mask: NDArray[np.bool_]) -> BatchInfo:
         """The masked members' last info dicts, stacked (gymnasium's vector info layout)."""

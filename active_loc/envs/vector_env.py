@@ -14,6 +14,7 @@ turn (:mod:`active_loc.envs.vector_engines`).
 from __future__ import annotations
 
 import math
+import os
 from typing import Any
 
 import gymnasium as gym
@@ -47,6 +48,9 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         render_mode: None or ``"rgb_array"``.
         render_envs: how many sub-envs ``render()`` draws, tiled in a grid (1: the first
             sub-env's frame as is).
+        workers: threads stepping the sub-envs of the ids without a batched core (MCL, grid
+            Markov, unknown correspondences, the maze); None: one per CPU core, at most 2.
+            The results are the same for any value.
         env_class: the single env class (``ActiveLocalizationEnv`` or ``MazeEnv``).
         **env_kwargs: the single env's kwargs (``scenario`` and config fields, or the maze's).
 
@@ -68,6 +72,7 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
         render_mode: str | None = None,
         render_envs: int = 1,
+        workers: int | None = None,
         env_class: type[gym.Env] = ActiveLocalizationEnv,
         **env_kwargs: Any,
     ) -> None:
@@ -105,7 +110,9 @@ class ActiveLocalizationVectorEnv(VectorEnv):
             if render_mode is not None:
                 for b in range(render_envs):
                     members[b] = env_class(render_mode=render_mode, **env_kwargs)
-            self.engine = MemberEngine(members)
+            if workers is None:
+                workers = min(2, os.cpu_count() or 1)
+            self.engine = MemberEngine(members, workers)
         self.single_observation_space = self.engine.single_observation_space
         self.single_action_space = self.engine.single_action_space
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -194,8 +201,7 @@ class ActiveLocalizationVectorEnv(VectorEnv):
 
     def close_extras(self, **kwargs: Any) -> None:
         if isinstance(self.engine, MemberEngine):
-            for env in self.engine.envs:
-                env.close()
+            self.engine.close()
         elif self._renderer is not None:
             self._renderer.close()
             self._renderer = None

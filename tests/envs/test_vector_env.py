@@ -205,3 +205,22 @@ def test_bad_input_is_named() -> None:
     discrete.reset(seed=0)
     with pytest.raises(ValueError, match=r"sub-env 0 must be in \[0, 6\)"):
         discrete.step(np.array([7, 0]))
+
+
+def test_threads_do_not_change_the_results() -> None:
+    """The member engine's worker threads step disjoint members: same results as one thread."""
+    runs = []
+    for workers in (1, 2):
+        envs = gym.make_vec("ActiveLoc/GridMCL-v0", 4, vectorization_mode="vector_entry_point",
+                            workers=workers, max_episode_steps=6, n_particles=2000)
+        assert envs.engine.workers == workers
+        obs, _ = envs.reset(seed=3)
+        rng = np.random.default_rng(3)
+        trace = [obs]
+        for _ in range(10):
+            result = envs.step(vector_actions(envs.action_space, rng))
+            trace += [result[0], result[1], result[4]["entropy"]]
+        envs.close()
+        runs.append(trace)
+    for a, b in zip(*runs, strict=True):
+        assert np.array_equal(a, b)

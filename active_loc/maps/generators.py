@@ -298,6 +298,7 @@ def symmetric_arena(
     n_pillars: tuple[IntRange, IntRange] = ((2, 5), (1, 3)),
     pillar_size_m: FloatRange = (0.3, 0.8),
     min_gap_m: float = 1.0,
+    marker_m: float = 0.0,
 ) -> OccupancyGrid:
     """An arena of identical copies, so that several poses see exactly the same thing.
 
@@ -327,6 +328,11 @@ def symmetric_arena(
         n_pillars: pillars along x and along y ("pillars"), each fixed or an inclusive range.
         pillar_size_m: pillar side ("pillars"), fixed or a range.
         min_gap_m: smallest free gap around a pillar ("pillars").
+        marker_m: side of a square block against the middle of the corridor's left end wall
+            ("rooms"; 0: none). It breaks the 180-degree symmetry, and only there: the rooms
+            stay identical, so a robot in a room cannot tell where it is until it looks down
+            the corridor. The classic set-up of active localization, where where to look
+            decides what the robot learns.
     """
     res = _check_resolution(resolution, "symmetric_arena")
     nx = _cells(size_m[0], res, "symmetric_arena: size_m[0]")
@@ -336,6 +342,8 @@ def symmetric_arena(
         values = _symmetric_rooms(
             rng, nx, ny, t, res, n_copies, corridor_width_m, door_width_m, furniture_prob
         )
+        if marker_m > 0.0:
+            _mark_corridor_end(values, t, _cells(marker_m, res, "symmetric_arena: marker_m"))
     elif kind == "pillars":
         values = _pillar_arena(rng, nx, ny, t, res, n_pillars, pillar_size_m, min_gap_m)
     else:
@@ -393,6 +401,21 @@ def _symmetric_rooms(
     values[:, :t] = OCCUPIED
     values[:, nx - t :] = OCCUPIED
     return values
+
+
+def _mark_corridor_end(values: NDArray[np.int8], t: int, side: int) -> None:
+    """A ``side`` x ``side`` block against the middle of the left end wall (in place)."""
+    column = values[:, t] == FREE
+    middle = values.shape[0] // 2  # the map's middle row lies in the corridor
+    low = high = middle
+    while low > 0 and column[low - 1]:
+        low -= 1
+    while high < column.size - 1 and column[high + 1]:
+        high += 1
+    if high - low + 1 < side + 2:
+        raise ValueError("symmetric_arena: marker_m does not fit in the corridor")
+    start = (low + high + 1 - side) // 2
+    values[start : start + side, t : t + side] = OCCUPIED
 
 
 def _pillar_axis(
@@ -546,6 +569,7 @@ def _backtracker(
 GENERATORS: dict[str, Callable[..., OccupancyGrid]] = {
     "rooms": rooms_map,
     "symmetric_rooms": functools.partial(symmetric_arena, kind="rooms"),
+    "marked_rooms": functools.partial(symmetric_arena, kind="rooms", marker_m=0.4),
     "pillars": functools.partial(symmetric_arena, kind="pillars"),
     "maze": maze_map,
 }

@@ -25,7 +25,7 @@ def _n_free_components(grid: OccupancyGrid) -> int:
 
 
 def test_generator_names():
-    assert set(GENERATORS) == {"rooms", "symmetric_rooms", "pillars", "maze"}
+    assert set(GENERATORS) == {"rooms", "symmetric_rooms", "marked_rooms", "pillars", "maze"}
 
 
 @pytest.mark.parametrize("name", sorted(GENERATORS))
@@ -115,6 +115,20 @@ def test_symmetric_rooms_are_exact_copies(seed):
         np.testing.assert_array_equal(tile, tiles[0])
     # each room has one doorway onto the corridor: its wall row has a gap
     assert (tiles[0][half - 1] == FREE).sum() > 0
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_the_marker_is_the_only_asymmetry(seed):
+    plain = symmetric_arena(np.random.default_rng(seed), kind="rooms", size_m=(12.0, 12.0))
+    marked = GENERATORS["marked_rooms"](np.random.default_rng(seed), size_m=(12.0, 12.0))
+    changed = plain.values != marked.values
+    assert not np.array_equal(marked.values, np.rot90(marked.values, 2))
+    rows, cols = np.nonzero(changed)
+    assert changed.sum() == 4 * 4  # one 0.4 m block of 0.1 m cells, free before
+    assert (plain.values[changed] == FREE).all() and (marked.values[changed] == OCCUPIED).all()
+    assert cols.min() == 2  # against the left end wall (2 cells thick)
+    corridor = np.flatnonzero(plain.values[:, 2] == FREE)
+    assert corridor.min() < rows.min() and rows.max() < corridor.max()  # not in a corner
 
 
 @pytest.mark.parametrize("seed", SEEDS)

@@ -510,13 +510,18 @@ class LandmarkCore(StateViews):
         self.state[b, X_NOISE_ROW] = 0
 
     def step(
-        self, rngs: Sequence[np.random.Generator], active: NDArray[np.bool_] | None = None
+        self,
+        rngs: Sequence[np.random.Generator],
+        active: NDArray[np.bool_] | None = None,
+        rows: slice = slice(None),
     ) -> int:
         """Advance the members with the actions in :attr:`actions` ``(B, 2)``.
 
         Args:
             rngs: the Generator of each member, to refill used-up noise blocks.
             active: ``(B,)`` which members to advance; None: all.
+            rows: advance only this contiguous range of members (the kernels release the
+                GIL, so threads may step disjoint ranges at once; fused EKF only).
 
         Returns:
             -1, or the index of a member whose action is not finite (nothing advanced then).
@@ -524,13 +529,18 @@ class LandmarkCore(StateViews):
         params = self.models.params
         if active is None:
             active = self._all_active
-        args = (self.actions, params, self.noise, self.state, self.world, self.obs, active)
+        lo = rows.indices(self.batch_size)[0]
+        args = (self.actions[rows], params, self.noise[rows], self.state[rows],
+                self.world[rows], self.obs[rows], active[rows])
         code = step_batch(*args)
         if code == NEED_NOISE:
-            for b in np.flatnonzero(active & (self.state[:, X_NOISE_ROW] >= NOISE_BLOCK)):
+            used_up = active[rows] & (self.state[rows, X_NOISE_ROW] >= NOISE_BLOCK)
+            for b in np.flatnonzero(used_up) + lo:
                 self.refill_noise(int(b), rngs[b])
             code = step_batch(*args)
-        if code >= 0 or self._fused:
+        if code >= 0:
+            return code + lo
+        if self._fused:
             return code
         collided = self.state[:, X_STATS + S_COLLIDED] > 0.5
         belief = self.belief

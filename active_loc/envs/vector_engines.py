@@ -16,6 +16,7 @@ seeded the same, so the vector env reproduces n single envs exactly.
 
 from __future__ import annotations
 
+import itertools
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -42,6 +43,9 @@ from active_loc.envs.landmark_core import (
 )
 from active_loc.envs.localization_env import ActiveLocalizationEnv, build_frame
 
+#: the fewest members a worker thread of the batched engine steps (fewer: one thread)
+MIN_ROWS_PER_WORKER = 64
+
 #: info dict of a batch: key -> array (n,) (or a nested dict of them), plus ``"_key"`` masks
 BatchInfo = dict[str, Any]
 
@@ -62,9 +66,18 @@ class BatchedLandmarkEngine:
         template: a single env of the id (its config, spaces and reward settings are used).
         num_envs: n.
         render_envs: how many leading members keep the paths the renderer draws.
+        workers: threads that each step a contiguous share of the batch (the kernel releases
+            the GIL); used when every share has at least :data:`MIN_ROWS_PER_WORKER` members.
     """
 
-    def __init__(self, template: ActiveLocalizationEnv, num_envs: int, render_envs: int) -> None:
+    def __init__(
+        self, template: ActiveLocalizationEnv, num_envs: int, render_envs: int, workers: int = 1
+    ) -> None:
+        if workers < 1:
+            raise ValueError(f"workers must be >= 1, got {workers}")
+        # a thread per share of the batch pays off only when the shares are large enough
+        self.workers = min(int(workers), max(1, num_envs // MIN_ROWS_PER_WORKER))
+        self._pool: ThreadPoolExecutor | None = None
         self.config = template.config
         self.core = LandmarkCore(template.config, batch_size=num_envs)
         self.num_envs = num_envs
@@ -110,10 +123,16 @@ class BatchedLandmarkEngine:
         False for the inactive ones, which the caller resets)."""
         core = self.core
         self._write_actions(actions, active)
-        code = core.step(self.rngs, active)  # type: ignore[arg-type]
-        if code >= 0:
-            raise ValueError(f"the action of sub-env {code} contains NaN or inf: "
-                             f"{np.asarray(actions)[code]!r}")
+        rngs: list[np.random.Generator] = self.rngs  # type: ignore[assignment]
+        if self.workers == 1:
+            core.step(rngs, active)
+        else:
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="active_loc")
+            bounds = np.linspace(0, self.num_envs, self.workers + 1).astype(int)
+            shares = [slice(int(lo), int(hi)) for lo, hi in itertools.pairwise(bounds)]
+            for future in [self._pool.submit(core.step, rngs, active, rows) for rows in shares]:
+                future.result()
         stats = core.state[:, X_STATS:]
         collided = active & (stats[:, S_COLLIDED] > 0.5)
         self.collisions += collided
@@ -157,6 +176,16 @@ class BatchedLandmarkEngine:
         }
         return with_masks(info, mask)
 
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_pool"] = None  # threads do not pickle; a copy starts its own when it steps
+        return state
+
     def frame(self, b: int) -> Any:
         """The renderer's frame of member ``b`` (< ``render_envs``)."""
         true_path, belief_path = self._paths[b]
@@ -171,6 +200,10 @@ class BatchedLandmarkEngine:
                     f"actions must be real numbers of shape ({n}, 2) for "
                     f"action_type='continuous', got {actions.dtype} {actions.shape}"
                 )
+            finite = np.isfinite(actions).all(axis=1) | ~active  # checked before any member moves
+            if not finite.all():
+                b = int(np.flatnonzero(~finite)[0])
+                raise ValueError(f"the action of sub-env {b} contains NaN or inf: {actions[b]!r}")
             self.core.actions[:] = actions
             return
         if actions.shape != (n,) or actions.dtype.kind not in "iu":

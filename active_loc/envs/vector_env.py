@@ -48,9 +48,9 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         render_mode: None or ``"rgb_array"``.
         render_envs: how many sub-envs ``render()`` draws, tiled in a grid (1: the first
             sub-env's frame as is).
-        workers: threads stepping the sub-envs of the ids without a batched core (MCL, grid
-            Markov, unknown correspondences, the maze); None: one per CPU core, at most 2.
-            The results are the same for any value.
+        workers: threads stepping shares of the sub-envs (the kernels release the GIL); None:
+            one per CPU core, at most 2. The batched EKF ids split the batch only when each
+            share has 64 sub-envs or more. The results are the same for any value.
         env_class: the single env class (``ActiveLocalizationEnv`` or ``MazeEnv``).
         **env_kwargs: the single env's kwargs (``scenario`` and config fields, or the maze's).
 
@@ -100,18 +100,18 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
 
         template = env_class(**env_kwargs)
+        if workers is None:
+            workers = min(2, os.cpu_count() or 1)
         self.engine: BatchedLandmarkEngine | MemberEngine
+        self._renderer: Any = None
         if batched_core(template):
             assert isinstance(template, ActiveLocalizationEnv)
-            self.engine = BatchedLandmarkEngine(template, self.num_envs, render_envs)
-            self._renderer: Any = None
+            self.engine = BatchedLandmarkEngine(template, self.num_envs, render_envs, workers)
         else:
             members = [template] + [env_class(**env_kwargs) for _ in range(1, self.num_envs)]
             if render_mode is not None:
                 for b in range(render_envs):
                     members[b] = env_class(render_mode=render_mode, **env_kwargs)
-            if workers is None:
-                workers = min(2, os.cpu_count() or 1)
             self.engine = MemberEngine(members, workers)
         self.single_observation_space = self.engine.single_observation_space
         self.single_action_space = self.engine.single_action_space
@@ -200,9 +200,8 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         return tile_frames(frames)
 
     def close_extras(self, **kwargs: Any) -> None:
-        if isinstance(self.engine, MemberEngine):
-            self.engine.close()
-        elif self._renderer is not None:
+        self.engine.close()
+        if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
 

@@ -194,6 +194,15 @@ def test_bad_input_is_named() -> None:
         native.step(np.zeros((3, 2), dtype=np.float32))
     with pytest.raises(ValueError, match="sub-env 1 contains NaN"):
         native.step(np.array([[0.0, 0.0], [np.nan, 0.0]]))
+    wide = gym.make_vec("ActiveLoc/LandmarkEKF-v0", 130, vectorization_mode="vector_entry_point",
+                        workers=2)
+    wide.reset(seed=0)
+    before = wide.engine.core.state.copy()
+    actions = np.zeros((130, 2))
+    actions[100, 1] = np.inf  # in the second worker's share: nobody moves
+    with pytest.raises(ValueError, match="sub-env 100 contains NaN or inf"):
+        wide.step(actions)
+    assert np.array_equal(wide.engine.core.state, before)
     with pytest.raises(ValueError, match="reset_mask"):
         native.reset(options={"reset_mask": np.array([1, 0])})
     with pytest.raises(ValueError, match="num_envs"):
@@ -207,19 +216,23 @@ def test_bad_input_is_named() -> None:
         discrete.step(np.array([7, 0]))
 
 
-def test_threads_do_not_change_the_results() -> None:
-    """The member engine's worker threads step disjoint members: same results as one thread."""
+@pytest.mark.parametrize(("env_id", "n", "kwargs"), [
+    ("ActiveLoc/GridMCL-v0", 4, {"n_particles": 2000}),
+    ("ActiveLoc/LandmarkEKF-v0", 130, {}),  # two shares of 65 rows
+])
+def test_threads_do_not_change_the_results(env_id: str, n: int, kwargs: dict) -> None:
+    """Worker threads step disjoint members: the same results as one thread."""
     runs = []
     for workers in (1, 2):
-        envs = gym.make_vec("ActiveLoc/GridMCL-v0", 4, vectorization_mode="vector_entry_point",
-                            workers=workers, max_episode_steps=6, n_particles=2000)
+        envs = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point",
+                            workers=workers, max_episode_steps=6, **kwargs)
         assert envs.engine.workers == workers
         obs, _ = envs.reset(seed=3)
         rng = np.random.default_rng(3)
         trace = [obs]
-        for _ in range(10):
+        for _ in range(80 if n > 100 else 10):  # past the 64-step noise blocks
             result = envs.step(vector_actions(envs.action_space, rng))
-            trace += [result[0], result[1], result[4]["entropy"]]
+            trace += [result[0], result[1], result[2], result[4]["entropy"]]
         envs.close()
         runs.append(trace)
     for a, b in zip(*runs, strict=True):

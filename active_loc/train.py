@@ -56,6 +56,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 import active_loc
 from active_loc.agents.sb3 import ALGORITHMS, CONFIG_FILE, MODEL_FILE, algorithm_class
 from active_loc.envs.registration import ENTRY_POINT, MAZE_ID
+from active_loc.envs.vector_engines import batched_core
 from active_loc.integrations.sb3 import make_native_vec_env
 from active_loc.integrations.timing import VecEnvTimer
 from active_loc.policies import PooledBeliefCNN, SmallCNN
@@ -132,10 +133,11 @@ class TrainArgs:
     """Episodes per evaluation (the same seeded episodes every time)."""
     checkpoint_freq: int = 50_000
     """Save a checkpoint every this many steps (summed over envs); 0: never."""
-    vec_env: Literal["dummy", "subproc", "native"] = "dummy"
+    vec_env: Literal["auto", "dummy", "subproc", "native"] = "auto"
     """dummy: the envs in this process; subproc: one process per env; native: the package's
     own vector env (active_loc.integrations.sb3), in this process, one batched kernel call per
-    step for the EKF landmark ids (one Monitor CSV for all training envs)."""
+    step for the EKF landmark ids (one Monitor CSV for all training envs); auto: native for
+    those ids, where it is faster, dummy otherwise."""
     device: str = "cpu"
     """Torch device."""
     torch_threads: int = 1
@@ -564,13 +566,27 @@ def eval_summary(out: Path) -> dict[str, Any] | None:
 # --- training ----------------------------------------------------------------------------------
 
 
+def resolve_vec_env(vec_env: str, env_id: str, env_kwargs: dict[str, Any]) -> str:
+    """``"auto"`` resolved: ``"native"`` for the ids whose vector env steps the batch in one
+    kernel call (measured faster in training, docs/performance.md), else ``"dummy"``."""
+    if vec_env != "auto":
+        return vec_env
+    if not env_id.startswith("ActiveLoc/"):
+        return "dummy"
+    env = make_env(env_id, **env_kwargs)
+    try:
+        return "native" if batched_core(env.unwrapped) else "dummy"
+    finally:
+        env.close()
+
+
 def make_train_envs(
     args: TrainArgs, env_kwargs: dict[str, Any], info_keywords: tuple[str, ...], out: Path,
-    eval_seed: int,
+    eval_seed: int, vec_mode: str,
 ) -> tuple[VecEnv, VecEnv]:
     """The training envs (``args.n_envs``, seeded ``args.seed + i``) and the eval env (one,
     seeded ``eval_seed``), both monitored: Monitor CSVs in ``out/monitor`` and ``out/eval``."""
-    if args.vec_env == "native":
+    if vec_mode == "native":
         # VecMonitor over the vector env: one CSV ("0.monitor.csv") for all its sub-envs
         vec_env = make_native_vec_env(
             args.env, args.n_envs, seed=args.seed, env_kwargs=env_kwargs, monitor=True,
@@ -581,7 +597,7 @@ def make_train_envs(
             info_keywords=info_keywords, monitor_file=str(out / "eval" / "0"),
         )
         return vec_env, eval_env
-    vec_env_cls = SubprocVecEnv if args.vec_env == "subproc" else DummyVecEnv
+    vec_env_cls = SubprocVecEnv if vec_mode == "subproc" else DummyVecEnv
     env_fn = partial(make_env, args.env)
     monitor_kwargs = {"info_keywords": info_keywords}
     vec_env = make_vec_env(
@@ -605,6 +621,7 @@ def train(args: TrainArgs) -> Path:
     hyper = resolve_hyperparameters(args)
     algo_cls = algorithm_class(args.algo)
     out = args.out if args.out is not None else default_out(args)
+    vec_mode = resolve_vec_env(args.vec_env, args.env, env_kwargs)
 
     # seeding: python, numpy and torch here; the algorithm (seed), the training envs
     # (seed + i) and the eval env (seed + EVAL_SEED_OFFSET, replayed at every evaluation)
@@ -627,13 +644,16 @@ def train(args: TrainArgs) -> Path:
             "observation_space": str(observation_space),
             "action_space": str(action_space),
             "eval_seed": eval_seed,
+            "vec_env": vec_mode,
         }),
         "versions": package_versions(),
     }
     config_file = out / CONFIG_FILE
     config_file.write_text(json.dumps(config, indent=2) + "\n")
 
-    vec_env, eval_env = make_train_envs(args, env_kwargs, info_keywords, out, eval_seed)
+    vec_env, eval_env = make_train_envs(
+        args, env_kwargs, info_keywords, out, eval_seed, vec_mode
+    )
     timer = VecEnvTimer(vec_env)
     vec_env = timer
 

@@ -53,10 +53,20 @@ leaves it free) and ``p_i = p_j - r (cos(theta_i + phi), sin(theta_i + phi))``; 
 kernel density of the samples (the paper uses a density tree; a kernel estimate plays the same
 role) is evaluated at ``i``'s particles and used as their likelihood, mixed with a small uniform
 part (:data:`FUSION_OUTLIER_PROB`) so that one bad detection cannot wipe a belief out. Particle
-beliefs offer no cross-covariance to intersect, so double counting is avoided as in the paper:
-once a pair of robots has fused, neither fuses a detection of the other again until
-``fusion_interval`` steps have passed and both beliefs have moved on with their own
-measurements (the env keeps that clock).
+beliefs offer no cross-covariance to intersect, so double counting is avoided by rules on when
+to fuse (the env applies them):
+
+* a waiting time, the paper's remedy: once a pair of robots has fused, neither fuses a
+  detection of the other again until ``fusion_interval`` steps have passed and the beliefs
+  have moved on with their own measurements;
+* by default (``fusion_sender_localized``) a robot only lends its belief once it is localized
+  (confident). An ambiguous belief's split between look-alike hypotheses is mostly resampling
+  noise, not evidence; two such robots that keep multiplying each other's splits drive each
+  other onto the same hypothesis, right or wrong (in 6 seeded episodes in the demo's arena, 2
+  of 12 robots fusing that way ended confident on a wrong pose, none with this rule). A
+  localized robot stops (its episode has ended) and its belief is frozen, so information then
+  flows one way only, and the interval keeps a robot from reusing the same frozen belief at
+  every step.
 
 Randomness: every draw comes from the Generator passed in.
 """
@@ -65,13 +75,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from active_loc.beliefs.mcl import MCLBelief
 from active_loc.geometry import wrap_angle, wrap_angle_scalar
-from active_loc.maps.landmarks import LandmarkMap, random_landmark_map
+from active_loc.maps.landmarks import LandmarkMap
 from active_loc.sensors.landmarks import RANGE_BEARING, in_view, measurement_and_jacobian
 
 #: 99.9 % quantile of chi-square with 2 dof: the validation gate of an EKF detection
@@ -395,6 +407,51 @@ def reciprocal_log_likelihood(
         return np.logaddexp(math.log1p(-a) + log_f, log_uniform)
 
 
+def fuse_ekf(
+    mean: NDArray, cov: NDArray, z: NDArray, pairs: list[tuple[int, int]], noise_cov: NDArray,
+    criterion: str,
+) -> list[tuple[int, int]]:
+    """Fuse detections into a batch of Gaussian beliefs in place by :func:`ci_detection_update`.
+
+    Args:
+        mean: ``(n, 3)``, cov: ``(n, 3, 3)``: the robots' beliefs, updated in place.
+        z: ``(n, n, 2)``: ``z[i, j]`` robot i's detection of robot j.
+        pairs: the ``(i, j)`` to fuse (robot i fuses its detection of robot j), in order; each
+            uses robot j's belief as it was before any of them (a simultaneous exchange).
+        noise_cov: ``(2, 2)`` detection noise R; criterion: ``"det"`` or ``"trace"``.
+
+    Returns:
+        The pairs that changed robot i's belief (gate passed and omega < 1).
+    """
+    before_mean, before_cov = mean.copy(), cov.copy()
+    fused = []
+    for i, j in pairs:
+        res = ci_detection_update(mean[i], cov[i], before_mean[j], before_cov[j], z[i, j],
+                                  noise_cov, criterion)
+        if res.fused and res.omega < 1.0:
+            mean[i], cov[i] = res.mean, res.cov
+            fused.append((i, j))
+    return fused
+
+
+def fuse_mcl(
+    beliefs: list[MCLBelief], pairs: list[tuple[int, int]], z: NDArray, noise_std: NDArray,
+    bandwidth: tuple[float, float, float], area: float, n_samples: int,
+    rng: np.random.Generator,
+) -> None:
+    """Fuse detections into particle beliefs by :func:`reciprocal_log_likelihood`, each pair
+    ``(i, j)`` with robot j's particles as they were before any of them; the weights go
+    through :meth:`MCLBelief.update` (normalization, resampling), untempered: the filter's
+    ``likelihood_exponent`` is for scans, a detection is not one. Draws from ``rng`` only."""
+    before = {j: (beliefs[j].particles.copy(), beliefs[j].weights) for _, j in pairs}
+    for i, j in pairs:
+        particles_j, weights_j = before[j]
+        belief = beliefs[i]
+        log_lik = reciprocal_log_likelihood(belief.particles, particles_j, weights_j, z[i, j],
+                                            noise_std, bandwidth, area, n_samples, rng)
+        belief.update(log_lik / belief.likelihood_exponent, rng)
+
+
 # --- the symmetric arena -------------------------------------------------------------------------
 
 
@@ -406,12 +463,16 @@ def symmetric_landmark_map(
     margin: float = 1.0,
 ) -> LandmarkMap:
     """A walled arena whose landmarks repeat under a 180-degree rotation about its centre, but
-    for one: ``(count - 1) // 2`` landmarks in the lower half, their rotated twins in the upper
-    half, and one *cue* landmark in the lower half without a twin (``count`` from
-    ``n_landmarks``, at least 3). With identical-looking landmarks every view away from the cue
-    fits two poses (the true one and its rotation), so a robot alone stays ambiguous until it
-    sees the cue; the cue makes the map as a whole unambiguous. The map spans ``(0, 0)`` to
-    ``size`` (m).
+    for one: ``(count - 1) // 2`` landmarks with their rotated twins, and one *cue* landmark
+    whose rotation is no landmark (``count`` from ``n_landmarks``, at least 3). With
+    identical-looking landmarks every view without the cue fits two poses (the true one and its
+    rotation), so a robot alone stays ambiguous until it sees the cue, which makes the map as a
+    whole unambiguous. Landmarks lie in ``[margin, size - margin]`` (m), every two (and every
+    landmark and the cue's rotation) at least ``min_separation`` (m) apart, placed by rejection
+    from a fixed block of uniforms. The map spans ``(0, 0)`` to ``size``.
+
+    Raises:
+        ValueError: fewer than 3 landmarks, or no room for them.
     """
     width, height = (float(s) for s in size)
     if isinstance(n_landmarks, tuple):
@@ -421,8 +482,140 @@ def symmetric_landmark_map(
     if count < 3:
         raise ValueError(f"n_landmarks: the symmetric arena needs at least 3, got {count}")
     pairs = (count - 1) // 2
-    half = random_landmark_map(rng, (width, 0.5 * height), pairs + 1, min_separation, margin)
-    lower = half.positions
-    upper = np.column_stack([width - lower[:pairs, 0], height - lower[:pairs, 1]])
-    positions = np.concatenate([lower[:pairs], upper, lower[pairs:]])
-    return LandmarkMap.trusted(np.ascontiguousarray(positions), (0.0, 0.0, width, height), True)
+    low = np.array([margin, margin])
+    span = np.array([width - 2 * margin, height - 2 * margin])
+    for _ in range(4):  # nearly always the first block; a rare shortfall draws another
+        candidates = low + rng.random((256 * count, 2)) * span
+        positions = _place_symmetric(candidates, np.array([width, height]) - candidates, pairs,
+                                     min_separation**2)
+        if positions is not None:
+            return LandmarkMap.trusted(positions, (0.0, 0.0, width, height), True)
+    raise ValueError(f"symmetric_landmark_map: could not place {count} landmarks "
+                     f"{min_separation} m apart in {size}")
+
+
+def _place_symmetric(
+    candidates: NDArray, twins: NDArray, pairs: int, limit: float
+) -> NDArray[np.float64] | None:
+    """Accept candidates ``(M, 2)`` in order, each with its twin ``(M, 2)`` (its rotation),
+    when both keep ``sqrt(limit)`` from each other and from everything accepted: ``pairs``
+    of them with their twins, then the cue (its twin's place kept clear, not a landmark).
+    Returns ``(2 pairs + 1, 2)`` positions (the pairs, their twins, the cue) or None."""
+    chosen: list[NDArray] = []
+    for p, twin in zip(candidates, twins, strict=True):
+        if np.sum((p - twin) ** 2) < limit or any(
+            np.sum((p - q) ** 2) < limit or np.sum((twin - q) ** 2) < limit for q in chosen
+        ):
+            continue
+        if len(chosen) == 2 * pairs:
+            return np.ascontiguousarray([*chosen[0::2], *chosen[1::2], p])
+        chosen += [p, twin]
+    return None
+
+
+# --- drawing (the env's render; here to keep the env module short) ------------------------------
+
+
+class MultiRobotRenderer:
+    """Matplotlib (Agg) drawing of a multi-robot frame: the map and landmarks (seen ones
+    filled), per robot in its colour the true pose (triangle), the belief (mean arrow and 95 %
+    position ellipse, plus the particles of MCL), the true path, and the detections as lines
+    between the true poses (solid: fused, dashed: not fused). Redraws the axes each frame (tens
+    of ms). Pose markers, ellipses and colours are :mod:`active_loc.envs.rendering`'s.
+
+    A frame is a dict: ``bounds`` (4,), ``landmarks`` (N, 2), ``seen`` (N,) bool or None,
+    ``poses``, ``means`` (n, 3), ``covs`` (n, 3, 3), ``particles`` / ``weights`` (lists of
+    (K, 3) / (K,), or None), ``detections`` [(i, j, fused)], ``paths`` [(T, 2)], ``live`` (n,),
+    ``entropy`` (n,) and ``step``.
+    """
+
+    def __init__(self, size_px: tuple[int, int] = (600, 600)) -> None:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        from active_loc.envs.rendering import DPI
+
+        self.size_px = size_px
+        self._fig = Figure(figsize=(size_px[0] / DPI, size_px[1] / DPI), dpi=DPI)
+        self._canvas = FigureCanvasAgg(self._fig)
+        self._window: Any = None
+
+    def render_rgb(self, frame: dict[str, Any]) -> NDArray[np.uint8]:
+        """``(H, W, 3)`` uint8 image of ``frame``."""
+        self._draw(self._fig, frame)
+        self._canvas.draw()
+        rgba = np.asarray(self._canvas.buffer_rgba())
+        out = np.full((self.size_px[1], self.size_px[0], 3), 255, dtype=np.uint8)
+        h, w = min(out.shape[0], rgba.shape[0]), min(out.shape[1], rgba.shape[1])
+        out[:h, :w] = rgba[:h, :w, :3]
+        return out
+
+    def show(self, frame: dict[str, Any]) -> None:
+        """Draw ``frame`` into a pyplot window without blocking."""
+        import matplotlib.pyplot as plt
+
+        from active_loc.envs.rendering import DPI
+
+        if self._window is None or not plt.fignum_exists(self._window.number):
+            plt.ion()
+            self._window = plt.figure(figsize=(self.size_px[0] / DPI, self.size_px[1] / DPI))
+        self._draw(self._window, frame)
+        self._window.canvas.draw_idle()
+        self._window.canvas.flush_events()
+
+    def close(self) -> None:
+        if self._window is not None:
+            import matplotlib.pyplot as plt
+
+            plt.close(self._window)
+            self._window = None
+
+    @staticmethod
+    def _draw(fig: Any, frame: dict[str, Any]) -> None:
+        import matplotlib
+        from matplotlib.patches import Ellipse, Polygon, Rectangle
+
+        from active_loc.envs.rendering import _ARROW, _TRIANGLE, _ellipse_params, _pose_polygon
+
+        fig.clear()
+        ax = fig.add_axes((0.09, 0.07, 0.88, 0.86))
+        x0, y0, x1, y1 = frame["bounds"]
+        span = max(x1 - x0, y1 - y0)
+        pad = 0.04 * span
+        ax.set_xlim(x0 - pad, x1 + pad)
+        ax.set_ylim(y0 - pad, y1 + pad)
+        ax.set_aspect("equal")
+        ax.tick_params(labelsize=7)
+        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ec="black", lw=1.2))
+        lms, seen = frame["landmarks"], frame["seen"]
+        ax.plot(lms[:, 0], lms[:, 1], ls="none", marker="*", ms=10, mfc="white", mec="black")
+        if seen is not None and seen[: len(lms)].any():
+            lit = lms[seen[: len(lms)]]
+            ax.plot(lit[:, 0], lit[:, 1], ls="none", marker="*", ms=10, mfc="tab:orange",
+                    mec="black")
+        colors = matplotlib.colormaps["tab10"].colors
+        size = 0.045 * span
+        poses, means, covs = frame["poses"], frame["means"], frame["covs"]
+        for i, j, fused in frame["detections"]:
+            ax.plot(*zip(poses[i, :2], poses[j, :2], strict=True), color=colors[i % 10],
+                    lw=1.4, ls="-" if fused else "--", zorder=2)
+        for i in range(poses.shape[0]):
+            color = colors[i % 10]
+            if frame["particles"] is not None:
+                parts = frame["particles"][i]
+                ax.scatter(parts[:, 0], parts[:, 1], s=2.0, color=color, alpha=0.25, lw=0,
+                           zorder=1)
+            path = frame["paths"][i]
+            ax.plot(path[:, 0], path[:, 1], color=color, lw=0.8, alpha=0.6, zorder=1.5)
+            ellipse = _ellipse_params(covs[i][:2, :2], cap=20.0 * span)
+            if ellipse is not None:
+                ax.add_patch(Ellipse(tuple(means[i, :2]), ellipse[0], ellipse[1],
+                                     angle=ellipse[2], fc=color, ec=color, alpha=0.2, zorder=3))
+            ax.add_patch(Polygon(_pose_polygon(_TRIANGLE, poses[i], 1.15 * size), fc=color,
+                                 ec="black", lw=0.8, zorder=4))
+            ax.add_patch(Polygon(_pose_polygon(_ARROW, means[i], size), fc="white", ec=color,
+                                 lw=1.2, zorder=5))
+        text = "   ".join(f"r{i}: H={h:.2f}{'' if live else ' (done)'}" for i, (h, live)
+                           in enumerate(zip(frame["entropy"], frame["live"], strict=True)))
+        fig.text(0.5, 0.985, f"step {frame['step']}   {text}", ha="center", va="top",
+                 fontsize=8)

@@ -6,6 +6,9 @@
 * Each MCL id at n = 16: the native vector env against gymnasium's ``SyncVectorEnv`` of the
   same id, both with NEXT_STEP autoreset.
 
+Both with one worker thread and with two (the kernels release the GIL; the batched EKF splits
+the batch only for n >= 128), to show what the second core adds.
+
 Actions are drawn up front from a seeded Generator, autoreset is part of the timed loop, and
 each figure is the best of ``--repeats`` timings. It measures; it asserts nothing.
 
@@ -99,24 +102,30 @@ def main() -> None:
     results["CartPole-v1"] = baseline
     print(f"CartPole-v1 single env: {baseline:.0f} steps/s\n")
 
-    print(f"{EKF_ID} native vector env")
-    print(f"{'n':>6} {'env-steps/s':>12} {'x CartPole':>11}")
+    print(f"{EKF_ID} native vector env, env-steps/s (x CartPole-v1)")
+    print(f"{'n':>6} {'1 thread':>18} {'2 threads':>18}")
     for n in EKF_SIZES:
-        envs = gym.make_vec(EKF_ID, n, vectorization_mode="vector_entry_point")
-        rate = vector_rate(envs, args.repeats, args.budget)
-        results[f"{EKF_ID} native n={n}"] = rate
-        print(f"{n:>6} {rate:>12.0f} {rate / baseline:>11.2f}")
+        cells = []
+        for workers in (1, 2):
+            envs = gym.make_vec(EKF_ID, n, vectorization_mode="vector_entry_point",
+                                workers=workers)
+            rate = vector_rate(envs, args.repeats, args.budget)
+            results[f"{EKF_ID} native n={n} workers={workers}"] = rate
+            cells.append(f"{rate:>9.0f} ({rate / baseline:>5.2f})")
+        print(f"{n:>6} {cells[0]:>18} {cells[1]:>18}")
 
-    print(f"\nMCL ids at n = {MCL_N}: native against SyncVectorEnv")
-    print(f"{'env':<32} {'sync':>9} {'native':>9} {'native/sync':>12}")
+    print(f"\nMCL ids at n = {MCL_N}, env-steps/s: native against SyncVectorEnv")
+    print(f"{'env':<32} {'sync':>7} {'native 1':>9} {'native 2':>9} {'2 / sync':>9}")
     for env_id in MCL_IDS:
-        rates = {}
-        for mode in ("sync", "vector_entry_point"):
-            envs = gym.make_vec(env_id, MCL_N, vectorization_mode=mode)
-            rates[mode] = vector_rate(envs, args.repeats, args.budget)
-        sync, native = rates["sync"], rates["vector_entry_point"]
-        results[f"{env_id} n={MCL_N}"] = {"sync": sync, "native": native}
-        print(f"{env_id:<32} {sync:>9.0f} {native:>9.0f} {native / sync:>12.2f}")
+        rates = {"sync": vector_rate(
+            gym.make_vec(env_id, MCL_N, vectorization_mode="sync"), args.repeats, args.budget)}
+        for workers in (1, 2):
+            envs = gym.make_vec(env_id, MCL_N, vectorization_mode="vector_entry_point",
+                                workers=workers)
+            rates[f"native {workers}"] = vector_rate(envs, args.repeats, args.budget)
+        results[f"{env_id} n={MCL_N}"] = rates
+        print(f"{env_id:<32} {rates['sync']:>7.0f} {rates['native 1']:>9.0f} "
+              f"{rates['native 2']:>9.0f} {rates['native 2'] / rates['sync']:>9.2f}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(results, f, indent=2)

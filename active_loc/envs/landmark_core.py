@@ -51,6 +51,7 @@ from active_loc.sensors.lidar import LidarSensor
 
 NOISE_BLOCK = 64
 NEED_NOISE = -2
+_ALL_ROWS = slice(None)
 
 TEXTBOOK_LANDMARKS = np.array([[0.0, 0.0], [2.0, 8.0], [8.0, 2.0], [10.0, 10.0]])
 TEXTBOOK_BOUNDS = (-2.0, -2.0, 14.0, 14.0)
@@ -513,7 +514,7 @@ class LandmarkCore(StateViews):
         self,
         rngs: Sequence[np.random.Generator],
         active: NDArray[np.bool_] | None = None,
-        rows: slice = slice(None),
+        rows: slice = _ALL_ROWS,
     ) -> int:
         """Advance the members with the actions in :attr:`actions` ``(B, 2)``.
 
@@ -529,12 +530,16 @@ class LandmarkCore(StateViews):
         params = self.models.params
         if active is None:
             active = self._all_active
-        lo = rows.indices(self.batch_size)[0]
-        args = (self.actions[rows], params, self.noise[rows], self.state[rows],
-                self.world[rows], self.obs[rows], active[rows])
+        if rows == _ALL_ROWS:  # the single env's path: no slicing, a few microseconds count
+            lo = 0
+            args = (self.actions, params, self.noise, self.state, self.world, self.obs, active)
+        else:
+            lo = rows.indices(self.batch_size)[0]
+            args = (self.actions[rows], params, self.noise[rows], self.state[rows],
+                    self.world[rows], self.obs[rows], active[rows])
         code = step_batch(*args)
         if code == NEED_NOISE:
-            used_up = active[rows] & (self.state[rows, X_NOISE_ROW] >= NOISE_BLOCK)
+            used_up = args[6] & (args[3][:, X_NOISE_ROW] >= NOISE_BLOCK)
             for b in np.flatnonzero(used_up) + lo:
                 self.refill_noise(int(b), rngs[b])
             code = step_batch(*args)

@@ -202,7 +202,7 @@ def unbatch_info(batch: dict[str, Any], n: int) -> list[dict[str, Any]]:
         if mask is None or key in _FINAL_KEYS:  # masks have no mask of their own
             continue
         values = unbatch_info(value, n) if isinstance(value, dict) else np.asarray(value).tolist()
-        for i in np.flatnonzero(mask):
+        for i in range(n) if mask.all() else np.flatnonzero(mask).tolist():
             rows[i][key] = values[i]
     return rows
 

@@ -25,6 +25,8 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_steps.py
 	$(BIN)/python benchmarks/bench_maze.py
 	$(BIN)/python benchmarks/bench_mcl.py
+	$(BIN)/python benchmarks/bench_vector.py
+	$(BIN)/python benchmarks/bench_training_split.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -7,8 +7,9 @@ Two engines with one interface (``obs``, ``reset_member``, ``step``, ``infos``, 
   read off its state matrix with numpy: no Python loop over members on a step's path.
 * :class:`MemberEngine`: every other id (MCL, grid Markov, unknown correspondences, the maze).
   Their cores hold one episode each, so the engine keeps n unwrapped single envs and steps
-  them in turn. It still skips gymnasium's wrapper stack and ``SyncVectorEnv``'s per-step
-  copies.
+  them on worker threads, each its own share (the particle and grid kernels release the
+  GIL, so two cores run two sub-envs' filters at once). It also skips gymnasium's wrapper
+  stack and ``SyncVectorEnv``'s per-step copies.
 
 Either way member ``b`` draws only from its own Generator, in the same order as a single env
 seeded the same, so the vector env reproduces n single envs exactly.

@@ -25,6 +25,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from bench_steps import steps_per_second  # this folder: the single-env timing, CartPole's too
 
 import active_loc  # noqa: F401  (registers the ids)
 
@@ -72,22 +73,6 @@ def vector_rate(envs: gym.vector.VectorEnv, repeats: int, budget_s: float) -> fl
     return calls * envs.num_envs / best
 
 
-def cartpole_rate(repeats: int, steps: int = 50_000) -> float:
-    """Best-of-``repeats`` steps per second of one ``gymnasium.make("CartPole-v1")``."""
-    env = gym.make("CartPole-v1")
-    actions = np.random.default_rng(0).integers(2, size=steps).tolist()
-    best = float("inf")
-    for _ in range(repeats):
-        env.reset(seed=0)
-        start = time.perf_counter()
-        for action in actions:
-            _, _, terminated, truncated, _ = env.step(action)
-            if terminated or truncated:
-                env.reset()
-        best = min(best, time.perf_counter() - start)
-    return steps / best
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
@@ -98,7 +83,7 @@ def main() -> None:
     print(f"machine: {platform.processor() or platform.machine()}, "
           f"python {platform.python_version()}, best of {args.repeats}\n")
     results: dict[str, Any] = {}
-    baseline = cartpole_rate(args.repeats)
+    baseline = steps_per_second("CartPole-v1", 50_000, args.repeats)
     results["CartPole-v1"] = baseline
     print(f"CartPole-v1 single env: {baseline:.0f} steps/s\n")
 

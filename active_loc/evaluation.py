@@ -8,7 +8,11 @@ turns records into the ``summary.json`` dict and :func:`write_results` writes
 :func:`success_curves` compute what it draws).
 
 Seeding: episode ``i`` of every agent is ``env.reset(seed=seed + i)``, so every agent meets the
-same maps, start poses and noise draws up to the point where its actions differ.
+same maps, start poses and noise draws up to the point where its actions differ. Before it, the
+agent is reseeded from the same episode seed (:func:`reseed_agent`: a random stream of its own,
+independent of the env's), so an episode's record does not depend on the episodes run before
+it: :func:`evaluate_ray` runs the episodes as Ray tasks, in any order and any process, and gets
+the same records as :func:`evaluate`.
 
 Metrics read the truth (the true pose, through ``info`` and the env's simulator state); agents
 never do: each step an agent gets the observation and ``env.unwrapped.planner_view()``.
@@ -357,6 +361,69 @@ def episode_seeds(episodes: int, seed: int) -> list[int]:
     return [seed + i for i in range(episodes)]
 
 
+#: the spawn key of the agents' random streams. Episode seed ``s`` seeds the env with
+#: ``SeedSequence(s)`` (gymnasium's ``np_random(s)``) and the agent with
+#: ``SeedSequence(s, spawn_key=(AGENT_SPAWN_KEY,))``: a stream of its own, independent of the
+#: env's noise, and the same for every agent.
+AGENT_SPAWN_KEY = 1
+
+
+def agent_rng(episode_seed: int) -> np.random.Generator:
+    """The Generator an agent gets for the episode reset with ``episode_seed``."""
+    return np.random.default_rng(
+        np.random.SeedSequence(int(episode_seed), spawn_key=(AGENT_SPAWN_KEY,))
+    )
+
+
+def reseed_agent(agent: Any, episode_seed: int) -> None:
+    """Start ``agent`` afresh for the episode reset with ``episode_seed``.
+
+    An agent with an ``rng`` attribute holding a numpy Generator (``RandomAgent``,
+    ``GreedyInfoGainAgent``, ``HorizonPlannerAgent``) gets :func:`agent_rng` in its place, and
+    an agent with a ``reset()`` method (``SB3Agent``) has it called. The package's agents keep
+    no other state from one episode to the next (they forget their per-episode memory when
+    ``view.step == 0``), so an agent reseeded this way acts exactly as a new one would, and an
+    episode's record depends only on the agent, the env and the episode's seed, not on which
+    episodes ran before it, in which process. Randomness kept elsewhere (torch's global
+    generator of a stochastic SB3 policy, say) is not reseeded.
+    """
+    if isinstance(getattr(agent, "rng", None), np.random.Generator):
+        agent.rng = agent_rng(episode_seed)
+    reset = getattr(agent, "reset", None)
+    if callable(reset):
+        reset()
+
+
+def run_episodes(
+    env: gym.Env,
+    agent: Any,
+    name: str,
+    indices: Sequence[int],
+    seed: int,
+    *,
+    reseed_agents: bool = True,
+    on_episode: Callable[[], None] | None = None,
+) -> list[EpisodeRecord]:
+    """Episodes ``i`` in ``indices`` (reset seeds ``seed + i``) of ``agent`` in ``env``, in
+    that order; with ``reseed_agents``, :func:`reseed_agent` before each."""
+    records = []
+    for i in indices:
+        episode_seed = int(seed) + int(i)
+        if reseed_agents:
+            reseed_agent(agent, episode_seed)
+        records.append(run_episode(env, agent, episode_seed, agent_name=name, episode=int(i)))
+        if on_episode is not None:
+            on_episode()
+    return records
+
+
+def _check_episodes_and_seed(episodes: Any, seed: Any) -> None:
+    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
+        raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise ValueError(f"seed must be an integer, got {seed!r}")
+
+
 def evaluate(
     env_id: str,
     env_kwargs: Mapping[str, Any] | None,
@@ -364,11 +431,17 @@ def evaluate(
     episodes: int,
     seed: int,
     progress: bool = True,
+    *,
+    reseed_agents: bool = True,
 ) -> list[EpisodeRecord]:
     """Run every agent on the same seeded episodes of ``gymnasium.make(env_id, **env_kwargs)``.
 
-    Each agent gets an env of its own; episode ``i`` is reset with ``seed + i``. The agents are
-    used as given (an agent with a random generator continues it from episode to episode).
+    Each agent gets an env of its own; episode ``i`` is reset with ``seed + i``, and (with
+    ``reseed_agents``, the default) the agent is reseeded for it by :func:`reseed_agent`, so
+    that episode ``i`` is the same whatever ran before it: :func:`evaluate_ray` gives the same
+    records. ``reseed_agents=False`` uses the agents as given (an agent with a random
+    generator continues it from episode to episode, as this function did before it reseeded;
+    the results of a stochastic agent then depend on the number and order of the episodes).
 
     Args:
         env_id: a registered id, e.g. ``"ActiveLoc/LandmarkEKF-v0"``.
@@ -378,19 +451,17 @@ def evaluate(
         episodes: episodes per agent, >= 1.
         seed: the base seed S.
         progress: show a progress bar over the episodes (tqdm, on stderr).
+        reseed_agents: reseed each agent before each episode (see above).
 
     Returns:
         The records, agent by agent in the order of ``agents``, episodes in order.
     """
-    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
-        raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-        raise ValueError(f"seed must be an integer, got {seed!r}")
+    _check_episodes_and_seed(episodes, seed)
     if not agents:
         raise ValueError("agents must name at least one agent")
     kwargs = dict(env_kwargs or {})
-    seeds = episode_seeds(int(episodes), int(seed))
-    bar = _progress_bar(len(agents) * len(seeds), progress)
+    indices = range(int(episodes))
+    bar = _progress_bar(len(agents) * len(indices), progress)
     records: list[EpisodeRecord] = []
     try:
         for name, agent in agents.items():
@@ -398,18 +469,130 @@ def evaluate(
             try:
                 if bar is not None:
                     bar.set_postfix_str(name)
-                for i, episode_seed in enumerate(seeds):
-                    records.append(
-                        run_episode(env, agent, episode_seed, agent_name=name, episode=i)
-                    )
-                    if bar is not None:
-                        bar.update(1)
+                records += run_episodes(
+                    env, agent, name, indices, int(seed), reseed_agents=reseed_agents,
+                    on_episode=None if bar is None else lambda: bar.update(1),
+                )
             finally:
                 env.close()
     finally:
         if bar is not None:
             bar.close()
     return records
+
+
+# --- many episodes on a Ray cluster ------------------------------------------------------------
+
+RAY_MISSING = 'Ray is not installed: pip install "active-loc[ray]" (or pip install "ray>=2.9")'
+
+
+def _episode_chunk(
+    env_id: str,
+    env_kwargs: dict[str, Any],
+    name: str,
+    spec: str,
+    seed: int,
+    indices: list[int],
+) -> list[EpisodeRecord]:
+    """A Ray task: episodes ``indices`` of the agent ``spec``, with an env and an agent of its
+    own, reseeded per episode (:func:`run_episodes`)."""
+    from active_loc.agents import make_agent
+
+    env = gym.make(env_id, **env_kwargs)
+    try:
+        agent = make_agent(spec, env, seed)
+        return run_episodes(env, agent, name, indices, seed, reseed_agents=True)
+    finally:
+        env.close()
+
+
+def _chunks(episodes: int, n_agents: int, cpus: float, chunk_size: int | None) -> list[range]:
+    """Episode index ranges of one agent: ``chunk_size`` episodes each, or (None) about four
+    tasks per CPU over all agents."""
+    if chunk_size is None:
+        per_agent = max(1, math.ceil(4 * max(cpus, 1.0) / n_agents))
+        chunk_size = math.ceil(episodes / per_agent)
+    if chunk_size < 1:
+        raise ValueError(f"chunk_size must be >= 1, got {chunk_size}")
+    return [range(lo, min(lo + chunk_size, episodes)) for lo in range(0, episodes, chunk_size)]
+
+
+def evaluate_ray(
+    env_id: str,
+    env_kwargs: Mapping[str, Any] | None,
+    agents: Mapping[str, str],
+    episodes: int,
+    seed: int,
+    progress: bool = True,
+    *,
+    address: str | None = None,
+    chunk_size: int | None = None,
+) -> list[EpisodeRecord]:
+    """:func:`evaluate` with the episodes run as Ray tasks: the same records, in the same order.
+
+    Each task plays a chunk of consecutive episodes of one agent with an env and an agent it
+    builds itself from picklable specs (the env id and kwargs, the agent's
+    :func:`~active_loc.agents.make_agent` spec, the seed) and returns their
+    :class:`EpisodeRecord` objects (the CSV row and the per-step traces the plots need).
+    Agents are reseeded per episode (:func:`reseed_agent`), as :func:`evaluate` does by
+    default, so the records equal those of ``evaluate(env_id, env_kwargs, {name:
+    make_agent(spec, env, seed)}, episodes, seed)`` (on machines with the same software:
+    every node needs ``active-loc`` installed, and the files of ``sb3:PATH`` agents).
+
+    Args:
+        env_id, env_kwargs, episodes, seed, progress: as for :func:`evaluate`.
+        agents: name -> agent spec (``"random"``, ``"greedy"``, ``"sb3:PATH"``, ...), in the
+            order to report them.
+        address: the cluster to connect to when Ray is not initialized yet
+            (``ray.init(address=address)``: ``"auto"``, ``"ray://HOST:10001"``, ...; None
+            starts a local Ray, or joins the one ``RAY_ADDRESS`` names). A Ray this function
+            started is shut down when it returns; one already initialized is used as it is.
+        chunk_size: episodes per task; None: about four tasks per CPU of the cluster.
+
+    Raises:
+        ImportError: Ray is not installed.
+    """
+    _check_episodes_and_seed(episodes, seed)
+    if not agents:
+        raise ValueError("agents must name at least one agent")
+    try:
+        import ray
+    except ImportError as error:
+        raise ImportError(RAY_MISSING) from error
+    kwargs = dict(env_kwargs or {})
+    started = not ray.is_initialized()
+    if started:
+        ray.init(address=address)
+    try:
+        cpus = float(ray.cluster_resources().get("CPU", 1.0))
+        chunks = _chunks(int(episodes), len(agents), cpus, chunk_size)
+        task = ray.remote(num_cpus=1)(_episode_chunk)
+        pending: dict[Any, tuple[str, int]] = {}
+        for name, spec in agents.items():
+            for chunk in chunks:
+                ref = task.remote(env_id, kwargs, name, spec, int(seed), list(chunk))
+                pending[ref] = (name, chunk.start)
+        bar = _progress_bar(len(agents) * int(episodes), progress)
+        done: dict[tuple[str, int], list[EpisodeRecord]] = {}
+        waiting = list(pending)
+        try:
+            while waiting:
+                ready, waiting = ray.wait(waiting, num_returns=1)
+                for ref in ready:
+                    done[pending[ref]] = chunk_records = ray.get(ref)
+                    if bar is not None:
+                        bar.update(len(chunk_records))
+        except BaseException:
+            for ref in waiting:  # a task failed (or Ctrl-C): drop the rest
+                ray.cancel(ref)
+            raise
+        finally:
+            if bar is not None:
+                bar.close()
+    finally:
+        if started:
+            ray.shutdown()
+    return [r for name in agents for chunk in chunks for r in done[(name, chunk.start)]]
 
 
 def _progress_bar(total: int, enabled: bool) -> Any:

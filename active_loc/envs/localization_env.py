@@ -137,11 +137,14 @@ class ActiveLocalizationEnv(gym.Env):
         render_mode: str | None = None,
         **kwargs: Any,
     ) -> None:
-        unknown = set(kwargs) - set(LocalizationConfig.field_names())
+        unknown = sorted(set(kwargs) - set(LocalizationConfig.field_names()))
         if unknown:
+            # Python's own wording, which wrappers such as TorchRL's GymEnv recognize when they
+            # probe for an optional keyword (frameskip) and retry without it
             raise TypeError(
-                f"unknown env kwargs {sorted(unknown)}; valid ones are the fields of "
-                "LocalizationConfig"
+                f"ActiveLocalizationEnv.__init__() got an unexpected keyword argument "
+                f"{unknown[0]!r} (unknown env kwargs {unknown}; valid ones are the fields of "
+                "LocalizationConfig)"
             )
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(

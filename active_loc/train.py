@@ -137,7 +137,7 @@ class TrainArgs:
     """dummy: the envs in this process; subproc: one process per env; native: the package's
     own vector env (active_loc.integrations.sb3), in this process, one batched kernel call per
     step for the EKF landmark ids (one Monitor CSV for all training envs); auto: native for
-    those ids, where it is faster, dummy otherwise."""
+    those ids from 16 envs on, where it is faster, dummy otherwise."""
     device: str = "cpu"
     """Torch device."""
     torch_threads: int = 1
@@ -566,12 +566,20 @@ def eval_summary(out: Path) -> dict[str, Any] | None:
 # --- training ----------------------------------------------------------------------------------
 
 
-def resolve_vec_env(vec_env: str, env_id: str, env_kwargs: dict[str, Any]) -> str:
+#: from this many training envs on, "auto" picks the native vector env for the batched ids
+NATIVE_MIN_ENVS = 16
+
+
+def resolve_vec_env(
+    vec_env: str, env_id: str, env_kwargs: dict[str, Any], n_envs: int = NATIVE_MIN_ENVS
+) -> str:
     """``"auto"`` resolved: ``"native"`` for the ids whose vector env steps the batch in one
-    kernel call (measured faster in training, docs/performance.md), else ``"dummy"``."""
+    kernel call, with at least :data:`NATIVE_MIN_ENVS` envs, else ``"dummy"``. Through SB3's
+    API (a list of info dicts a step) both cost the same at 8 envs; at 64 the native env steps
+    3.3x faster (docs/performance.md)."""
     if vec_env != "auto":
         return vec_env
-    if not env_id.startswith("ActiveLoc/"):
+    if not env_id.startswith("ActiveLoc/") or n_envs < NATIVE_MIN_ENVS:
         return "dummy"
     env = make_env(env_id, **env_kwargs)
     try:
@@ -621,7 +629,7 @@ def train(args: TrainArgs) -> Path:
     hyper = resolve_hyperparameters(args)
     algo_cls = algorithm_class(args.algo)
     out = args.out if args.out is not None else default_out(args)
-    vec_mode = resolve_vec_env(args.vec_env, args.env, env_kwargs)
+    vec_mode = resolve_vec_env(args.vec_env, args.env, env_kwargs, args.n_envs)
 
     # seeding: python, numpy and torch here; the algorithm (seed), the training envs
     # (seed + i) and the eval env (seed + EVAL_SEED_OFFSET, replayed at every evaluation)

@@ -664,6 +664,8 @@ def train(args: TrainArgs) -> Path:
     )
     timer = VecEnvTimer(vec_env)
     vec_env = timer
+    # the same wrapper type on the eval env (untimed), or EvalCallback warns of a mismatch
+    eval_env = VecEnvTimer(eval_env)
 
     model = algo_cls(
         policy, vec_env, policy_kwargs=policy_kwargs, seed=args.seed, device=args.device,

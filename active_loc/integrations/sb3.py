@@ -196,13 +196,19 @@ def unbatch_info(batch: dict[str, Any], n: int) -> list[dict[str, Any]]:
     """Gymnasium's batched info (arrays ``(n,)`` with ``"_key"`` masks) as n plain dicts of
     Python scalars: row i holds the keys whose mask is set at i; nested dicts recurse.
     ``final_obs`` and ``final_info`` are left out."""
+    keys = [key for key in batch if f"_{key}" in batch and key not in _FINAL_KEYS]
+    columns = [
+        unbatch_info(batch[key], n) if isinstance(batch[key], dict)
+        else np.asarray(batch[key]).tolist()
+        for key in keys
+    ]
+    masks = [batch[f"_{key}"] for key in keys]
+    if keys and all(mask.all() for mask in masks):
+        # every row has every key (the native env's step infos): build the rows in C
+        return [dict(zip(keys, row, strict=True)) for row in zip(*columns, strict=True)]
     rows: list[dict[str, Any]] = [{} for _ in range(n)]
-    for key, value in batch.items():
-        mask = batch.get(f"_{key}")
-        if mask is None or key in _FINAL_KEYS:  # masks have no mask of their own
-            continue
-        values = unbatch_info(value, n) if isinstance(value, dict) else np.asarray(value).tolist()
-        for i in range(n) if mask.all() else np.flatnonzero(mask).tolist():
+    for key, values, mask in zip(keys, columns, masks, strict=True):
+        for i in np.flatnonzero(mask).tolist():
             rows[i][key] = values[i]
     return rows
 

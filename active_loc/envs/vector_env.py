@@ -7,8 +7,8 @@ Registered as the ``vector_entry_point`` of every ``ActiveLoc`` id, so that::
 
 returns it. Sub-env i is seeded with seed + i and reproduces, step for step, a single env
 made with the same kwargs and seeded seed + i (observations, rewards, flags and infos). The
-EKF landmark ids step the whole batch in one kernel call; the others step their members in
-turn (:mod:`active_loc.envs.vector_engines`).
+EKF landmark ids step the whole batch in one kernel call; the others step their members on
+worker threads (:mod:`active_loc.envs.vector_engines`).
 """
 
 from __future__ import annotations

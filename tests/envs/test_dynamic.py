@@ -18,15 +18,7 @@ from active_loc.sensors.lidar import (
     likelihood_field_table_log_likelihood,
     occlude_ranges,
 )
-
-BEAMS = 60
-
-
-def wander(observation: np.ndarray, max_range: float = 8.0) -> int:
-    """Forward, or turn left when the scan shows something within 1 m ahead (passive)."""
-    scan = observation[-BEAMS:]
-    return 1 if scan[BEAMS // 2 - 3 : BEAMS // 2 + 4].min() * max_range > 1.0 else 4
-
+from tests.envs.wander import wander
 
 # --- occlusion and beam skipping -----------------------------------------------------------------
 

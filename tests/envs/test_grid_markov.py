@@ -25,18 +25,10 @@ from active_loc.sensors.lidar_lattice import (
     off_map_log_probability,
     padded_table,
 )
+from tests.envs.wander import BEAMS, wander
 
 ENV_ID = "ActiveLoc/GridMarkov-v0"
-BEAMS = 60
 FORWARD, FORWARD_LEFT, TURN_LEFT, TURN_RIGHT = 1, 2, 4, 5
-
-
-def wander(observation: np.ndarray, max_range: float = 8.0) -> int:
-    """A passive wanderer for grid maps: forward, turn left when the scan shows a wall within
-    1 m ahead. It reads the lidar part of the observation, never the belief."""
-    scan = observation[-BEAMS:]
-    ahead = scan[BEAMS // 2 - 3 : BEAMS // 2 + 4].min() * max_range
-    return FORWARD if ahead > 1.0 else TURN_LEFT
 
 
 # --- brute force -----------------------------------------------------------------------------

@@ -15,17 +15,9 @@ from active_loc.beliefs.particle_stats import ENTROPY_BINS
 from active_loc.envs.landmark_core import S_LOGDET, S_TRACE, X_COV, X_MEAN
 from active_loc.geometry import wrap_angle
 from active_loc.maps import rooms_map
+from tests.envs.wander import wander
 
 SHARED_MAPS = Path(__file__).resolve().parents[3] / "shared" / "maps"
-BEAMS = 60
-
-
-def wander(observation: np.ndarray, max_range: float = 8.0) -> int:
-    """A passive wanderer for grid maps: forward, turn left when the scan shows a wall ahead.
-    It reads the lidar part of the observation, never the belief."""
-    scan = observation[-BEAMS:]
-    ahead = scan[BEAMS // 2 - 3 : BEAMS // 2 + 4].min() * max_range
-    return 1 if ahead > 1.0 else 4
 
 
 def particle_mass_near(belief: object, center: np.ndarray) -> float:

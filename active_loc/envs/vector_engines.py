@@ -60,6 +60,30 @@ def batched_core(env: gym.Env) -> bool:
     )
 
 
+class WorkerThreads:
+    """Worker threads an engine runs shares of a step on (started when first needed)."""
+
+    def __init__(self, workers: int) -> None:
+        self.workers = workers
+        self._pool: ThreadPoolExecutor | None = None
+
+    def run(self, fn: Any, shares: list[Any]) -> None:
+        """``fn(share)`` for every share, on the threads; re-raises the first error (a bad
+        action, say) after all have finished."""
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="active_loc")
+        for future in [self._pool.submit(fn, share) for share in shares]:
+            future.result()
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {"workers": self.workers, "_pool": None}  # threads do not pickle
+
+
 class BatchedLandmarkEngine:
     """n EKF landmark episodes in one :class:`LandmarkCore` with B = n.
 
@@ -77,8 +101,7 @@ class BatchedLandmarkEngine:
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
         # a thread per share of the batch pays off only when the shares are large enough
-        self.workers = min(int(workers), max(1, num_envs // MIN_ROWS_PER_WORKER))
-        self._pool: ThreadPoolExecutor | None = None
+        self.threads = WorkerThreads(min(int(workers), max(1, num_envs // MIN_ROWS_PER_WORKER)))
         self.config = template.config
         self.core = LandmarkCore(template.config, batch_size=num_envs)
         self.num_envs = num_envs
@@ -125,15 +148,13 @@ class BatchedLandmarkEngine:
         core = self.core
         self._write_actions(actions, active)
         rngs: list[np.random.Generator] = self.rngs  # type: ignore[assignment]
-        if self.workers == 1:
+        workers = self.threads.workers
+        if workers == 1:
             core.step(rngs, active)
         else:
-            if self._pool is None:
-                self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="active_loc")
-            bounds = np.linspace(0, self.num_envs, self.workers + 1).astype(int)
+            bounds = np.linspace(0, self.num_envs, workers + 1).astype(int)
             shares = [slice(int(lo), int(hi)) for lo, hi in itertools.pairwise(bounds)]
-            for future in [self._pool.submit(core.step, rngs, active, rows) for rows in shares]:
-                future.result()
+            self.threads.run(lambda rows: core.step(rngs, active, rows), shares)
         stats = core.state[:, X_STATS:]
         collided = active & (stats[:, S_COLLIDED] > 0.5)
         self.collisions += collided
@@ -178,14 +199,7 @@ class BatchedLandmarkEngine:
         return with_masks(info, mask)
 
     def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown()
-            self._pool = None
-
-    def __getstate__(self) -> dict[str, Any]:
-        state = self.__dict__.copy()
-        state["_pool"] = None  # threads do not pickle; a copy starts its own when it steps
-        return state
+        self.threads.close()
 
     def frame(self, b: int) -> Any:
         """The renderer's frame of member ``b`` (< ``render_envs``)."""
@@ -235,8 +249,7 @@ class MemberEngine:
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
         self.envs = envs
-        self.workers = min(int(workers), len(envs))
-        self._pool: ThreadPoolExecutor | None = None
+        self.threads = WorkerThreads(min(int(workers), len(envs)))
         self.num_envs = len(envs)
         self.single_observation_space = envs[0].observation_space
         self.single_action_space = envs[0].action_space
@@ -266,27 +279,17 @@ class MemberEngine:
                 rewards[b], terminated[b], truncated[b] = reward, term, trunc
 
         members = np.flatnonzero(active)
-        if self.workers == 1 or len(members) < 2:
+        workers = self.threads.workers
+        if workers == 1 or len(members) < 2:
             run(members)
         else:
-            if self._pool is None:
-                self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="active_loc")
-            shares = [members[k :: self.workers] for k in range(self.workers)]
-            for future in [self._pool.submit(run, share) for share in shares]:
-                future.result()  # re-raises a member's error (a bad action, say)
+            self.threads.run(run, [members[k::workers] for k in range(workers)])
         return rewards, terminated, truncated
 
     def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown()
-            self._pool = None
+        self.threads.close()
         for env in self.envs:
             env.close()
-
-    def __getstate__(self) -> dict[str, Any]:
-        state = self.__dict__.copy()
-        state["_pool"] = None  # threads do not pickle; a copy starts its own when it steps
-        return state
 
     def infos(self, mask: NDArray[np.bool_]) -> BatchInfo:
         """The masked members' last info dicts, stacked (gymnasium's vector info layout)."""

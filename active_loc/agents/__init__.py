@@ -8,6 +8,7 @@ from active_loc.agents.horizon import HorizonPlannerAgent
 from active_loc.agents.passive import WallFollowerAgent, WandererAgent
 from active_loc.agents.random_agent import RandomAgent
 from active_loc.agents.registry import AGENT_NAMES, make_agent
+from active_loc.agents.targets import TargetPlannerAgent
 from active_loc.agents.textbook import TextbookAgent
 
 
@@ -26,6 +27,7 @@ __all__ = [
     "HorizonPlannerAgent",
     "RandomAgent",
     "SB3Agent",
+    "TargetPlannerAgent",
     "TextbookAgent",
     "WallFollowerAgent",
     "WandererAgent",

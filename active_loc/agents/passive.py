@@ -6,8 +6,8 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from gymnasium import spaces
 
+from active_loc.agents.planning import primitive_action
 from active_loc.envs.actions import PRIMITIVE_NAMES
 from active_loc.sensors.lidar import LidarSensor
 
@@ -17,21 +17,12 @@ _FORWARD_RIGHT = PRIMITIVE_NAMES.index("forward_right")
 _TURN_LEFT = PRIMITIVE_NAMES.index("turn_left")
 
 
-def _primitive_action(view: Any, index: int) -> Any:
-    """The env action of motion primitive ``index``: itself in a discrete space, its control
-    encoded in a continuous one."""
-    if isinstance(view.action_space, spaces.Discrete):
-        return index
-    control = view.limits.primitives()[index]
-    return view.limits.encode(control).astype(view.action_space.dtype)
-
-
 class WandererAgent:
     """Drives a circle of constant curvature: forward-left forever (the "forward_left"
     primitive, or its control with continuous actions)."""
 
     def act(self, observation: Any, view: Any) -> Any:
-        return _primitive_action(view, _FORWARD_LEFT)
+        return primitive_action(view, _FORWARD_LEFT)
 
 
 class WallFollowerAgent:
@@ -55,9 +46,9 @@ class WallFollowerAgent:
         ahead = ranges[np.abs(angles) <= np.deg2rad(15.0)]
         right = ranges[np.abs(angles + np.pi / 2) <= np.deg2rad(20.0)]
         if ahead.size and ahead.min() < self.front_clearance:
-            return _primitive_action(view, _TURN_LEFT)
+            return primitive_action(view, _TURN_LEFT)
         if right.size == 0 or right.min() > self.right_band[1]:
-            return _primitive_action(view, _FORWARD_RIGHT)
+            return primitive_action(view, _FORWARD_RIGHT)
         if right.min() < self.right_band[0]:
-            return _primitive_action(view, _FORWARD_LEFT)
-        return _primitive_action(view, _FORWARD)
+            return primitive_action(view, _FORWARD_LEFT)
+        return primitive_action(view, _FORWARD)

@@ -25,6 +25,15 @@ def candidate_actions(view: Any) -> list[Any]:
     return [a.astype(space.dtype) for a in limits.encode(limits.primitives())]
 
 
+def primitive_action(view: Any, index: int) -> Any:
+    """The env action of motion primitive ``index`` (of ``actions.PRIMITIVES``): the index
+    itself in a discrete space, the primitive's control encoded in a continuous one."""
+    if isinstance(view.action_space, spaces.Discrete):
+        return index
+    control = view.limits.primitives()[index]
+    return view.limits.encode(control).astype(view.action_space.dtype)
+
+
 def control_of(view: Any, action: Any) -> np.ndarray:
     """(V m/s, omega rad/s) of an action, or ``None`` for views without controls (the maze)."""
     return view.decode(action) if hasattr(view, "decode") else None

@@ -10,10 +10,11 @@ from active_loc.agents.greedy import GreedyInfoGainAgent
 from active_loc.agents.horizon import HorizonPlannerAgent
 from active_loc.agents.passive import WallFollowerAgent, WandererAgent
 from active_loc.agents.random_agent import RandomAgent
+from active_loc.agents.targets import TargetPlannerAgent
 from active_loc.agents.textbook import TextbookAgent
 
 #: the names :func:`make_agent` takes (and ``sb3:PATH``)
-AGENT_NAMES = ("random", "passive", "greedy", "horizon", "textbook", "wanderer",
+AGENT_NAMES = ("random", "passive", "greedy", "horizon", "targets", "textbook", "wanderer",
                "wall_follower")
 
 
@@ -54,6 +55,11 @@ def make_agent(spec: str, env: gym.Env, seed: int = 0) -> Any:
         return GreedyInfoGainAgent(seed=seed)
     if spec == "horizon":
         return HorizonPlannerAgent(seed=seed)
+    if spec == "targets":
+        if kind != "lidar":
+            raise ValueError("agent 'targets' plans paths on a grid map: it needs a grid env "
+                             "with a lidar")
+        return TargetPlannerAgent(seed=seed)
     if spec in ("textbook", "wanderer", "wall_follower"):
         if kind == "maze":
             raise ValueError(f"agent {spec!r} drives a unicycle robot; Maze-v0 has none")

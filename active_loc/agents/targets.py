@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -117,12 +118,18 @@ class PoseSet:
         return self.poses[picks]
 
 
-def _planning_sensor(sensor: LidarSensor) -> LidarSensor:
-    """The lidar model plans are scored with: the likelihood field, whatever the filter's (the
-    beam model ray-casts every pose and beam, thousands of times per plan)."""
-    if sensor.model == "likelihood_field":
-        return sensor
-    return dataclasses.replace(sensor, model="likelihood_field")
+def scan_scorer(view: Any) -> Callable[[NDArray, NDArray], NDArray]:
+    """How plans score a scan ``(M,)`` at poses ``(K, 3)`` (log-likelihoods, not tempered):
+    as the env's filter does (:meth:`PlannerView.scan_log_likelihood`), except that a beam
+    model without a range table is replaced by the likelihood field: ray-casting every pose and
+    beam, thousands of times per plan, would take minutes."""
+    sensor = view.sensor
+    if view.range_table is not None or sensor.model == "likelihood_field":
+        return view.scan_log_likelihood
+    field = dataclasses.replace(sensor, model="likelihood_field")
+    grid = view.map
+    return lambda z, poses: field.log_likelihood(z, poses, grid.kernel_arrays(),
+                                                 grid.distance_field())
 
 
 @dataclass
@@ -235,7 +242,7 @@ class TargetPlannerAgent:
         """Mean over the hypotheses of the entropy after moving every pose by ``delta`` and
         scanning from where the hypothesis ends up (``h0`` plus the collision penalty for a
         hypothesis that cannot get there)."""
-        grid, sensor = view.map, _planning_sensor(view.sensor)
+        grid, sensor, score = view.map, view.sensor, scan_scorer(view)
         arrays = grid.kernel_arrays()
         rng = np.random.default_rng(seed)
         moved = compose(pose_set.poses, delta[None, :])
@@ -247,7 +254,7 @@ class TargetPlannerAgent:
                 total += h0 + penalty
                 continue
             scan = sensor.measure(compose(hypothesis, delta), arrays, rng)
-            log_lik = sensor.log_likelihood(scan, moved, arrays, grid.distance_field())
+            log_lik = score(scan, moved)
             total += pose_set.entropy(moved, prior + pose_set.likelihood_exponent * log_lik)
         return total / hypotheses.shape[0]
 

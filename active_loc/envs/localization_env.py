@@ -269,6 +269,7 @@ class ActiveLocalizationEnv(gym.Env):
             association_gate=self.config.association_gate,
             likelihood_exponent=self.config.likelihood_exponent,
             collision_penalty=self.config.collision_penalty,
+            range_table=getattr(self.core, "range_table", None),
         )
 
     # -- helpers ----------------------------------------------------------------------------

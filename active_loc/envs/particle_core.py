@@ -262,6 +262,12 @@ class ParticleCore(StateViews):
         self.landmarks[:] = 0.0
         self.landmarks[0, : lmap.n_landmarks] = lmap.positions
 
+    @property
+    def range_table(self) -> RangeTable | None:
+        """The beam model's precomputed casts for the current map (``lidar_range_bins > 0``
+        with the beam model), else None."""
+        return self._range_table
+
     def _random_free_pose(self, rng: np.random.Generator) -> NDArray[np.float64]:
         """A uniform free pose; on landmark maps 1 m (at most a quarter) away from the border."""
         lmap = self.maps[0]

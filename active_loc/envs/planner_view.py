@@ -24,6 +24,7 @@ from active_loc.sensors.lidar_lattice import (
     off_map_log_probability,
     padded_table,
 )
+from active_loc.sensors.range_table import RangeTable
 
 AnyBelief = EKFBelief | FilterpyEKFBelief | MCLBelief | GridBelief
 
@@ -47,6 +48,8 @@ class PlannerView:
             (an MCL belief carries its own).
         collision_penalty: what the env's reward subtracts on a blocked move (nats), so that
             planners can weigh a bump against the information a step gains.
+        range_table: the beam model's casts precomputed for this map, when the env's filter
+            uses them (``lidar_range_bins > 0``); :meth:`scan_log_likelihood` scores with it.
 
     It holds no configuration beyond that: a fixed start pose, for one, is the truth.
     """
@@ -62,10 +65,26 @@ class PlannerView:
     association_gate: float | None = DEFAULT_GATE
     likelihood_exponent: float = 1.0
     collision_penalty: float = 0.0
+    range_table: RangeTable | None = None
 
     def decode(self, action: object) -> NDArray[np.float64]:
         """Physical control (V m/s, omega rad/s) of an env action, as the env decodes it."""
         return self.limits.decode(action)
+
+    def scan_log_likelihood(
+        self, z: NDArray[np.float64], poses: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """The filter's lidar log-likelihoods ``(K,)`` (nats, not tempered) of a scan ``(M,)``
+        at poses ``(K, 3)``, as the env's particle filter scores it: from the range table when
+        there is one, else with the sensor's model (the likelihood field, or the beam model
+        ray-casting every pose and beam)."""
+        if not isinstance(self.map, OccupancyGrid) or not isinstance(self.sensor, LidarSensor):
+            raise ValueError("scan_log_likelihood needs a grid map with a lidar")
+        if self.range_table is not None:
+            return self.range_table.log_likelihood(np.asarray(z, dtype=np.float64),
+                                                   np.ascontiguousarray(poses, dtype=np.float64))
+        return self.sensor.log_likelihood(z, poses, self.map.kernel_arrays(),
+                                          self.map.distance_field())
 
     def simulate(
         self, action: object, belief: AnyBelief, rng: np.random.Generator
@@ -120,10 +139,7 @@ class PlannerView:
             out.predict(np.array([0.0 if blocked else control[0], control[1]]), rng)
             arrays = self.map.kernel_arrays()
             z = self.sensor.measure(pose, arrays, rng)
-            log_lik = self.sensor.log_likelihood(
-                z, out.particles, arrays, self.map.distance_field()
-            )
-            out.update(log_lik, rng)
+            out.update(self.scan_log_likelihood(z, out.particles), rng)
             return out, z, np.ones(z.shape[0], dtype=np.bool_), blocked
         out.predict(control, rng)
         cumulative = np.cumsum(out.weights)

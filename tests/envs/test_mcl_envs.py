@@ -219,3 +219,20 @@ def test_passive_wanderer_localizes_globally_on_landmark_maps() -> None:
     print(f"LandmarkMCL-v0 passive wanderer: {successes}/50 localized, {false}/50 "
           f"confidently wrong")
     assert successes >= 45 and false <= 4
+
+
+@pytest.mark.parametrize(("model", "bins"), [("likelihood_field", 0), ("beam", 0), ("beam", 90)])
+def test_the_planner_view_scores_scans_as_the_filter_does(model: str, bins: int) -> None:
+    """``planner_view().scan_log_likelihood`` is the env filter's own scan likelihood: the
+    likelihood field, the ray-cast beam model, or the beam model from the env's range table
+    (which the view carries)."""
+    grid = rooms_map(np.random.default_rng(2), size_m=(8.0, 8.0), resolution=0.1)
+    env = gym.make("ActiveLoc/GridMCL-v0", map=grid, lidar_model=model, lidar_range_bins=bins,
+                   n_particles=300, kld=False, action_type="discrete")
+    env.reset(seed=1)
+    env.step(1)
+    core, view = env.unwrapped.core, env.unwrapped.planner_view()
+    assert (view.range_table is None) == (bins == 0)
+    poses = view.belief.particles[:50]
+    np.testing.assert_array_equal(view.scan_log_likelihood(core.ranges[0], poses),
+                                  core._scan_log_likelihood(core.ranges[0], poses))

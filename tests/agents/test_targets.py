@@ -64,9 +64,11 @@ def test_farthest_points_spread_out_and_thin_path_spaces_waypoints():
     np.testing.assert_allclose(waypoints[:, 0], [0.5, 1.0, 1.5, 2.0])
 
 
-def test_a_scrambled_truth_gives_the_same_plans():
-    """The planner reads the view only: moving the true pose does not change its actions."""
-    env = gym.make("ActiveLoc/GridMCL-v0", map="marked_rooms", action_type="discrete")
+@pytest.mark.parametrize("env_id", ["ActiveLoc/GridMCL-v0", "ActiveLoc/GridMarkov-v0"])
+def test_a_scrambled_truth_gives_the_same_plans(env_id):
+    """The planner reads the view only (a particle or a grid belief): moving the true pose
+    does not change its actions."""
+    env = gym.make(env_id, map="marked_rooms", action_type="discrete")
     honest, fooled = TargetPlannerAgent(seed=3), TargetPlannerAgent(seed=3)
     obs, _ = env.reset(seed=4)
     rng = np.random.default_rng(0)

@@ -52,6 +52,15 @@ def entropy_of(belief: Any) -> float:
     return float(np.ravel(belief.entropy())[0])
 
 
+def systematic_picks(weights: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
+    """``count`` indices into ``weights`` ``(K,)`` (not necessarily normalized) drawn by
+    systematic resampling with one uniform from ``rng``."""
+    cumulative = np.cumsum(weights)
+    positions = (rng.random() + np.arange(count)) / count * cumulative[-1]
+    return np.minimum(np.searchsorted(cumulative, positions, side="right"),
+                      cumulative.shape[0] - 1)
+
+
 def planning_belief(belief: Any, max_particles: int, rng: np.random.Generator) -> Any:
     """A copy of ``belief`` to plan with: a particle belief with more than ``max_particles``
     particles is resampled down to that many (systematic, by weight, with ``rng``), without
@@ -59,10 +68,7 @@ def planning_belief(belief: Any, max_particles: int, rng: np.random.Generator) -
     Other beliefs are copied as they are."""
     if not isinstance(belief, MCLBelief) or belief.n_active <= max_particles:
         return belief.copy()
-    cumulative = np.cumsum(belief.weights)
-    positions = (rng.random() + np.arange(max_particles)) / max_particles * cumulative[-1]
-    picks = np.minimum(np.searchsorted(cumulative, positions, side="right"),
-                       belief.n_active - 1)
+    picks = systematic_picks(belief.weights, max_particles, rng)
     out = MCLBelief(
         belief.free_space, belief.motion, max_particles, resampling=belief.resampling,
         resample_threshold=belief.resample_threshold,

@@ -45,6 +45,7 @@ from active_loc.agents.planning import (
     collision_penalty_of,
     planning_belief,
     primitive_action,
+    systematic_picks,
 )
 from active_loc.beliefs.grid import GridBelief
 from active_loc.beliefs.mcl import MCLBelief
@@ -111,11 +112,8 @@ class PoseSet:
 
     def draw(self, count: int, rng: np.random.Generator) -> NDArray[np.float64]:
         """``count`` poses ``(count, 3)`` drawn by weight (systematic)."""
-        cumulative = np.cumsum(np.exp(self.log_weights - self.log_weights.max()))
-        positions = (rng.random() + np.arange(count)) / count * cumulative[-1]
-        picks = np.minimum(np.searchsorted(cumulative, positions, side="right"),
-                           cumulative.shape[0] - 1)
-        return self.poses[picks]
+        weights = np.exp(self.log_weights - self.log_weights.max())
+        return self.poses[systematic_picks(weights, count, rng)]
 
 
 def scan_scorer(view: Any) -> Callable[[NDArray, NDArray], NDArray]:

@@ -78,6 +78,8 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--budget", type=float, default=4.0, help="seconds per timing")
     parser.add_argument("--json", default=None, help="also write the figures to this file")
+    parser.add_argument("--part", choices=("all", "ekf", "mcl"), default="all",
+                        help="time only the EKF sizes or only the MCL ids")
     args = parser.parse_args()
 
     print(f"machine: {platform.processor() or platform.machine()}, "
@@ -87,6 +89,18 @@ def main() -> None:
     results["CartPole-v1"] = baseline
     print(f"CartPole-v1 single env: {baseline:.0f} steps/s\n")
 
+    if args.part != "mcl":
+        results.update(ekf_rates(baseline, args.repeats, args.budget))
+    if args.part != "ekf":
+        results.update(mcl_rates(args.repeats, args.budget))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(results, f, indent=2)
+
+
+def ekf_rates(baseline: float, repeats: int, budget: float) -> dict[str, float]:
+    """The EKF id's native vector env at every size, 1 and 2 threads (printed as well)."""
+    results = {}
     print(f"{EKF_ID} native vector env, env-steps/s (x CartPole-v1)")
     print(f"{'n':>6} {'1 thread':>18} {'2 threads':>18}")
     for n in EKF_SIZES:
@@ -94,26 +108,29 @@ def main() -> None:
         for workers in (1, 2):
             envs = gym.make_vec(EKF_ID, n, vectorization_mode="vector_entry_point",
                                 workers=workers)
-            rate = vector_rate(envs, args.repeats, args.budget)
+            rate = vector_rate(envs, repeats, budget)
             results[f"{EKF_ID} native n={n} workers={workers}"] = rate
             cells.append(f"{rate:>9.0f} ({rate / baseline:>5.2f})")
         print(f"{n:>6} {cells[0]:>18} {cells[1]:>18}")
+    return results
 
+
+def mcl_rates(repeats: int, budget: float) -> dict[str, dict[str, float]]:
+    """Each MCL id at n = MCL_N: SyncVectorEnv against the native env (printed as well)."""
+    results = {}
     print(f"\nMCL ids at n = {MCL_N}, env-steps/s: native against SyncVectorEnv")
     print(f"{'env':<32} {'sync':>7} {'native 1':>9} {'native 2':>9} {'2 / sync':>9}")
     for env_id in MCL_IDS:
         rates = {"sync": vector_rate(
-            gym.make_vec(env_id, MCL_N, vectorization_mode="sync"), args.repeats, args.budget)}
+            gym.make_vec(env_id, MCL_N, vectorization_mode="sync"), repeats, budget)}
         for workers in (1, 2):
             envs = gym.make_vec(env_id, MCL_N, vectorization_mode="vector_entry_point",
                                 workers=workers)
-            rates[f"native {workers}"] = vector_rate(envs, args.repeats, args.budget)
+            rates[f"native {workers}"] = vector_rate(envs, repeats, budget)
         results[f"{env_id} n={MCL_N}"] = rates
         print(f"{env_id:<32} {rates['sync']:>7.0f} {rates['native 1']:>9.0f} "
               f"{rates['native 2']:>9.0f} {rates['native 2'] / rates['sync']:>9.2f}")
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(results, f, indent=2)
+    return results
 
 
 if __name__ == "__main__":

@@ -47,6 +47,7 @@ from active_loc.envs.landmark_core import (
     B_COUNT,
     B_WALLS,
     NEED_NOISE,
+    NOISE_BLOCK,
     P_DT,
     P_FOV,
     P_KIND,
@@ -65,7 +66,7 @@ from active_loc.envs.landmark_core import (
     X_BOX,
     X_COV,
     X_MEAN,
-    X_NOISE_ROW,
+    X_NOISE_CURSOR,
     X_POSE,
     X_STATS,
     LandmarkCore,
@@ -175,7 +176,7 @@ def association_step_batch(
         params: the landmark core's packed parameters; detection_params: the ``D_*`` vector.
         noise: ``(B, NOISE_BLOCK, 3 + 2 N + U)``: per step, 3 + 2 N standard normals (motion,
             then measurement noise, as the landmark core's) and U uniforms in [0, 1)
-            (``detection_draws``); consumed row by row at the cursor ``state[:, X_NOISE_ROW]``.
+            (``detection_draws``); consumed row by row at the cursor ``state[:, X_NOISE_CURSOR]``.
         state: ``(B, STATE_SIZE)``, world: ``(B, N, WORLD_SIZE)``: updated in place.
         z: ``(B, M, 2)`` out, the scan (M = N + max clutter); truth, index: ``(B, M)`` int out,
             the true and the inferred correspondences (``count`` = unmatched); d2: ``(B, M)``
@@ -189,7 +190,7 @@ def association_step_batch(
     for b in range(actions.shape[0]):
         if not (np.isfinite(actions[b, 0]) and np.isfinite(actions[b, 1])):
             return b
-        if state[b, X_NOISE_ROW] >= noise.shape[1]:
+        if state[b, X_NOISE_CURSOR] >= noise.shape[1]:
             return NEED_NOISE
     r = params[P_R : P_R + 4].reshape(2, 2)
     q = params[P_Q : P_Q + 9].reshape(3, 3)
@@ -202,8 +203,8 @@ def association_step_batch(
     n_normals = 3 + 2 * world.shape[1]
     for b in range(actions.shape[0]):
         v, omega = _decode(actions[b], params)
-        row = int(state[b, X_NOISE_ROW])
-        state[b, X_NOISE_ROW] = row + 1
+        row = int(state[b, X_NOISE_CURSOR])
+        state[b, X_NOISE_CURSOR] = row + 1
         normals = noise[b, row, :n_normals]
         # true motion with noise L_Q e
         n0, n1, n2 = normals[0], normals[1], normals[2]
@@ -278,7 +279,7 @@ class AssociationCore(LandmarkCore):
         self.detection_params[D_GATE] = gate_threshold(config.association_gate)
         rows = n + max_clutter
         # per step the landmark core's normals, then the detection uniforms
-        self.noise = np.zeros((batch_size, self.noise.shape[1], self._n_normals + n_uniforms))
+        self.noise = np.zeros((batch_size, NOISE_BLOCK, self._n_normals + n_uniforms))
         self._scan = np.zeros((batch_size, rows, 2))
         self.truth = np.full((batch_size, rows), -1, dtype=np.int64)
         self.index = np.zeros((batch_size, rows), dtype=np.int64)
@@ -324,7 +325,8 @@ class AssociationCore(LandmarkCore):
         block, k = self.noise.shape[1], self._n_normals
         self.noise[b, :, :k] = rng.standard_normal((block, k))
         self.noise[b, :, k:] = rng.random((block, self.noise.shape[2] - k))
-        self.state[b, X_NOISE_ROW] = 0
+        self.state[b, X_NOISE_CURSOR] = 0
+        self.noise_source[b] = rng
 
     def step(self, rngs: Sequence[np.random.Generator]) -> int:
         """Advance every member with the actions in :attr:`actions` ``(B, 2)``.
@@ -334,7 +336,7 @@ class AssociationCore(LandmarkCore):
         """
         code = self._step_kernel()
         if code == NEED_NOISE:
-            for b in np.flatnonzero(self.state[:, X_NOISE_ROW] >= self.noise.shape[1]):
+            for b in np.flatnonzero(self.state[:, X_NOISE_CURSOR] >= self.noise.shape[1]):
                 self.refill_noise(int(b), rngs[b])
             code = self._step_kernel()
         return code

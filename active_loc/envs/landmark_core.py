@@ -17,8 +17,11 @@ below; the holder exposes them as named views (``core.pose``, ``core.z``, ...). 
 the kernel call cheap, which matters at a few microseconds per step.
 
 Randomness: each member owns a ``numpy.random.Generator`` (the env's ``np_random``). Step noise
-is drawn from it in blocks of :data:`NOISE_BLOCK` steps (motion then measurement normals per
-step) and consumed by the kernel, which is both fast and exactly reproducible.
+is drawn from it :data:`NOISE_LENGTH` standard normals at a time into the member's buffer, which
+the kernel consumes in order: 3 for the motion, then 2 per landmark in view (only those, so a
+step of a robot that sees 1 landmark of 15 uses 5 normals, not 33). A buffer is drawn afresh
+when the next step could run past its end, and a reset with a new Generator (a reseeded env)
+discards the old one: fast and exactly reproducible, in a single env as in a batch.
 """
 
 from __future__ import annotations
@@ -49,9 +52,13 @@ from active_loc.sensors.landmarks import (
 )
 from active_loc.sensors.lidar import LidarSensor
 
+#: standard normals in a member's noise buffer (the landmark core; more with many landmarks)
+NOISE_LENGTH = 256
+#: steps per noise block of the association core (a row of draws per step)
 NOISE_BLOCK = 64
+#: a noise cursor past any buffer: the next step draws a fresh one
+NOISE_EXHAUSTED = float(2**31)
 NEED_NOISE = -2
-_ALL_ROWS = slice(None)
 
 TEXTBOOK_LANDMARKS = np.array([[0.0, 0.0], [2.0, 8.0], [8.0, 2.0], [10.0, 10.0]])
 TEXTBOOK_BOUNDS = (-2.0, -2.0, 14.0, 14.0)
@@ -79,7 +86,7 @@ P_Q, P_QROOT, P_R, P_RROOT = 15, 24, 33, 37
 N_PARAMS = 41
 
 # layout of a row of ``state``
-X_POSE, X_MEAN, X_COV, X_BOX, X_NOISE_ROW, X_STATS = 0, 3, 6, 15, 21, 22
+X_POSE, X_MEAN, X_COV, X_BOX, X_NOISE_CURSOR, X_STATS = 0, 3, 6, 15, 21, 22
 # within the map box: bounds (x_min, y_min, x_max, y_max), walls flag, landmark count
 B_WALLS, B_COUNT = 4, 5
 # layout of a landmark's entry in ``world``: position (2), measurement (2), visible (0 / 1)
@@ -201,30 +208,33 @@ def _decode(action: NDArray, params: NDArray) -> tuple[float, float]:
 
 @numba.njit(cache=True, nogil=True)
 def _simulate_one(
-    v: float, omega: float, noise: NDArray, params: NDArray, state: NDArray, world: NDArray
-) -> bool:
-    """Move the true robot with noise, then scan; returns whether the move was blocked.
+    v: float, omega: float, normals: NDArray, params: NDArray, state: NDArray, world: NDArray
+) -> tuple[bool, int]:
+    """Move the true robot with noise, then scan.
 
-    ``state`` is one row ``(STATE_SIZE,)``, ``world`` one member ``(N, WORLD_SIZE)``, ``noise``
-    one row of normals (3 for the motion, then 2 per landmark).
+    ``state`` is one row ``(STATE_SIZE,)``, ``world`` one member ``(N, WORLD_SIZE)``,
+    ``normals`` the member's unused noise: 3 for the motion, then 2 per landmark in view.
+
+    Returns:
+        Whether the move was blocked, and how many normals were used.
     """
-    # motion noise L_Q e from the row's first three normals (L_Q row-major in params)
+    # motion noise L_Q e from the first three normals (L_Q row-major in params)
     q = P_QROOT
-    e_x = params[q] * noise[0] + params[q + 1] * noise[1] + params[q + 2] * noise[2]
-    e_y = params[q + 3] * noise[0] + params[q + 4] * noise[1] + params[q + 5] * noise[2]
-    e_t = params[q + 6] * noise[0] + params[q + 7] * noise[1] + params[q + 8] * noise[2]
+    e_x = params[q] * normals[0] + params[q + 1] * normals[1] + params[q + 2] * normals[2]
+    e_y = params[q + 3] * normals[0] + params[q + 4] * normals[1] + params[q + 5] * normals[2]
+    e_t = params[q + 6] * normals[0] + params[q + 7] * normals[1] + params[q + 8] * normals[2]
     pose = state[X_POSE : X_POSE + 3]
     box = state[X_BOX : X_BOX + 6]
     collided = move_within_bounds_scalar(
         pose, v, omega, params[P_DT], e_x, e_y, e_t, box[:4], box[B_WALLS] > 0.5
     )
     r = P_RROOT
-    measure_landmarks(
+    used = measure_landmarks(
         int(params[P_KIND]), pose, world[:, W_LANDMARK : W_LANDMARK + 2], int(box[B_COUNT]),
-        params[P_FOV], params[P_RANGE], (params[r], params[r + 2], params[r + 3]), noise[3:],
+        params[P_FOV], params[P_RANGE], (params[r], params[r + 2], params[r + 3]), normals[3:],
         world[:, W_Z : W_Z + 2], world[:, W_VISIBLE],
     )
-    return collided
+    return collided, 3 + used
 
 
 @numba.njit(cache=True, nogil=True)
@@ -272,58 +282,100 @@ def _finish_one(params: NDArray, state: NDArray, world: NDArray, obs: NDArray) -
 
 
 @numba.njit(cache=True, nogil=True)
+def first_bad_action(actions: NDArray, active: NDArray) -> int:
+    """The index of the first active member whose action ``(B, 2)`` is not finite, or -1."""
+    for b in range(actions.shape[0]):
+        if active[b] and not (np.isfinite(actions[b, 0]) and np.isfinite(actions[b, 1])):
+            return b
+    return -1
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _step_member(
+    b: int, actions: NDArray, params: NDArray, noise: NDArray, state: NDArray, world: NDArray,
+    obs: NDArray, pending: NDArray,
+) -> None:
+    """One step of member ``b`` (arguments as in :func:`step_batch`), or ``pending[b] = True``
+    if its noise buffer may not hold the step's normals (3 + 2 per landmark)."""
+    cursor = int(state[b, X_NOISE_CURSOR])
+    if cursor + 3 + 2 * int(state[b, X_BOX + B_COUNT]) > noise.shape[1]:
+        pending[b] = True
+        return
+    pending[b] = False
+    v, omega = _decode(actions[b], params)
+    collided, used = _simulate_one(v, omega, noise[b, cursor:], params, state[b], world[b])
+    state[b, X_NOISE_CURSOR] = cursor + used
+    state[b, X_STATS + S_COLLIDED] = 1.0 if collided else 0.0
+    if params[P_RUN_EKF] > 0.5:
+        mean = state[b, X_MEAN : X_MEAN + 3]
+        cov = state[b, X_COV : X_COV + 9].reshape(3, 3)
+        # a blocked robot knows it did not advance (bumper, odometry): predict with V = 0
+        ekf_predict(mean, cov, 0.0 if collided else v, omega, params[P_DT],
+                    params[P_Q : P_Q + 9].reshape(3, 3))
+        state[b, X_STATS + S_NIS] = ekf_update(
+            mean, cov, world[b, :, W_Z : W_Z + 2], world[b, :, W_VISIBLE],
+            world[b, :, W_LANDMARK : W_LANDMARK + 2], int(params[P_KIND]),
+            params[P_R : P_R + 4].reshape(2, 2),
+        )
+        _finish_one(params, state[b], world[b], obs[b])
+
+
+@numba.njit(cache=True, nogil=True)
 def step_batch(
     actions: NDArray, params: NDArray, noise: NDArray, state: NDArray, world: NDArray,
-    obs: NDArray, active: NDArray,
+    obs: NDArray, active: NDArray, pending: NDArray,
 ) -> int:
-    """One step of the batch's active members.
+    """One step of the batch's active members, one after the other.
 
     Args:
         actions: ``(B, 2)`` continuous actions in [-1, 1] (clipped) or, for discrete action
             sets, the primitives' physical controls (V m/s, omega rad/s).
         params: the packed parameter vector of :func:`build_models`; ``P_RUN_EKF`` = 0 leaves
             the belief update to the caller, who then calls :func:`finish_batch`.
-        noise: ``(B, NOISE_BLOCK, 3 + 2 N)`` standard normals, consumed row by row (the
-            cursor is ``state[:, X_NOISE_ROW]``).
+        noise: ``(B, L)`` standard normals, consumed in order from each member's
+            cursor ``state[:, X_NOISE_CURSOR]``.
         state: ``(B, STATE_SIZE)``, world: ``(B, N, WORLD_SIZE)``: updated in place.
         obs: ``(B, D)`` float32 out.
         active: ``(B,)`` bool; inactive members are left untouched (a vector env resets them
             this step instead), their actions unread.
+        pending: ``(B,)`` bool out: the active members left untouched because their noise
+            buffer may run out this step; the caller refills them and steps just those.
 
     Returns:
-        -1 on success; the index of an active member whose action is not finite; or
-        :data:`NEED_NOISE` when an active member's noise block is used up. In the last two
-        cases nothing has been changed.
+        -1 when every active member stepped; :data:`NEED_NOISE` when some are pending; or
+        the index of an active member whose action is not finite (then nothing has changed).
     """
+    bad = first_bad_action(actions, active)
+    if bad >= 0:
+        return bad
+    waiting = False
     for b in range(actions.shape[0]):
-        if not active[b]:
-            continue
-        if not (np.isfinite(actions[b, 0]) and np.isfinite(actions[b, 1])):
-            return b
-        if state[b, X_NOISE_ROW] >= noise.shape[1]:
+        if active[b]:
+            _step_member(b, actions, params, noise, state, world, obs, pending)
+            waiting |= pending[b]
+        else:
+            pending[b] = False
+    return NEED_NOISE if waiting else -1
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def step_batch_parallel(
+    actions: NDArray, params: NDArray, noise: NDArray, state: NDArray, world: NDArray,
+    obs: NDArray, active: NDArray, pending: NDArray,
+) -> int:
+    """:func:`step_batch` with the members spread over numba's threads. Each member touches
+    only its own rows, so the result does not depend on the thread count."""
+    bad = first_bad_action(actions, active)
+    if bad >= 0:
+        return bad
+    for b in numba.prange(actions.shape[0]):
+        if active[b]:
+            _step_member(b, actions, params, noise, state, world, obs, pending)
+        else:
+            pending[b] = False
+    for b in range(actions.shape[0]):
+        if pending[b]:
             return NEED_NOISE
-    r = params[P_R : P_R + 4].reshape(2, 2)
-    q = params[P_Q : P_Q + 9].reshape(3, 3)
-    kind = int(params[P_KIND])  # reshaped once per call, not per member
-    run_ekf = params[P_RUN_EKF] > 0.5
-    for b in range(actions.shape[0]):
-        if not active[b]:
-            continue
-        v, omega = _decode(actions[b], params)
-        row = int(state[b, X_NOISE_ROW])
-        state[b, X_NOISE_ROW] = row + 1
-        collided = _simulate_one(v, omega, noise[b, row], params, state[b], world[b])
-        state[b, X_STATS + S_COLLIDED] = 1.0 if collided else 0.0
-        if run_ekf:
-            mean = state[b, X_MEAN : X_MEAN + 3]
-            cov = state[b, X_COV : X_COV + 9].reshape(3, 3)
-            # a blocked robot knows it did not advance (bumper, odometry): predict with V = 0
-            ekf_predict(mean, cov, 0.0 if collided else v, omega, params[P_DT], q)
-            state[b, X_STATS + S_NIS] = ekf_update(
-                mean, cov, world[b, :, W_Z : W_Z + 2], world[b, :, W_VISIBLE],
-                world[b, :, W_LANDMARK : W_LANDMARK + 2], kind, r,
-            )
-            _finish_one(params, state[b], world[b], obs[b])
     return -1
 
 
@@ -379,7 +431,7 @@ def reset_member_kernel(
         row[X_MEAN + i] = row[X_POSE + i] + error_std[i] * normals[i]
     row[X_MEAN + 2] = wrap_angle_scalar(row[X_MEAN + 2])
     row[X_COV : X_COV + 9] = initial_cov.ravel()
-    row[X_NOISE_ROW] = NOISE_BLOCK  # the first step draws a fresh noise block
+    row[X_NOISE_CURSOR] = NOISE_EXHAUSTED  # the first step draws a fresh noise buffer
     _finish_one(params, row, world[b], obs[b])
     row[X_STATS + S_UNCERTAINTY_REWARD] = 0.0
 
@@ -443,15 +495,20 @@ class LandmarkCore(StateViews):
         self.state = np.zeros((batch_size, STATE_SIZE))
         self.world = np.zeros((batch_size, n, WORLD_SIZE))
         self.obs = np.zeros((batch_size, belief_observation_size(n)), dtype=np.float32)
-        self.noise = np.zeros((batch_size, NOISE_BLOCK, 3 + 2 * n))
+        # room for several steps that see every landmark, even with a large max_landmarks
+        self.noise = np.zeros((batch_size, max(NOISE_LENGTH, 4 * (3 + 2 * n))))
+        #: the Generator each member's noise buffer came from; a reset with another one (a
+        #: reseeded env) discards the buffer, so an episode never uses an old seed's draws
+        self.noise_source: list[np.random.Generator | None] = [None] * batch_size
         #: the actions of the next step, written by the env: ``(B, 2)``, see :func:`step_batch`
         self.actions = np.zeros((batch_size, 2))
         self._all_active = np.ones(batch_size, dtype=np.bool_)
+        self._pending = np.zeros(batch_size, dtype=np.bool_)  # see step_batch
         self._random_start = config.start == "random"
         self._start_pose = np.array(config.start_pose, dtype=np.float64)
         self._error_std = np.array(config.initial_error_std, dtype=np.float64)
         self._initial_cov = np.diag(np.square(config.initial_belief_std))
-        self.state[:, X_NOISE_ROW] = NOISE_BLOCK
+        self.state[:, X_NOISE_CURSOR] = NOISE_EXHAUSTED
         self.state[:, X_COV : X_COV + 9] = self._initial_cov.ravel()
         self.belief: EKFBelief | FilterpyEKFBelief
         if config.ekf_backend == "filterpy":
@@ -478,11 +535,6 @@ class LandmarkCore(StateViews):
         """``(B, N)`` which landmarks the last scan saw (a copy)."""
         return self.world[:, :, W_VISIBLE] > 0.5
 
-    @property
-    def noise_index(self) -> NDArray[np.float64]:
-        """``(B,)`` the next noise row of each member (a view)."""
-        return self.state[:, X_NOISE_ROW]
-
     # -- reset ---------------------------------------------------------------------------------
 
     def reset_member(self, b: int, rng: np.random.Generator) -> None:
@@ -495,34 +547,39 @@ class LandmarkCore(StateViews):
         self.maps[b] = lmap
         uniforms = rng.random(3) if self._random_start else self._start_pose
         normals = rng.standard_normal(3)
+        cursor = self.state[b, X_NOISE_CURSOR]
         reset_member_kernel(
             b, lmap.positions, np.asarray(lmap.bounds), lmap.walls, self._random_start, uniforms,
             normals, self._error_std, self._initial_cov, self.models.params, self.state,
             self.world, self.obs,
         )
+        if self.noise_source[b] is rng:
+            # the same Generator goes on (no reseeding): so does its noise buffer
+            self.state[b, X_NOISE_CURSOR] = cursor
         if isinstance(self.belief, FilterpyEKFBelief):
             self.belief.set(self.state[b, X_MEAN : X_MEAN + 3], self._initial_cov)
 
     # -- step ----------------------------------------------------------------------------------
 
     def refill_noise(self, b: int, rng: np.random.Generator) -> None:
-        """Draw the next block of step noise of member ``b`` from its Generator."""
-        self.noise[b] = rng.standard_normal(self.noise.shape[1:])
-        self.state[b, X_NOISE_ROW] = 0
+        """Draw a fresh noise buffer of member ``b`` from its Generator."""
+        self.noise[b] = rng.standard_normal(self.noise.shape[1])
+        self.state[b, X_NOISE_CURSOR] = 0
+        self.noise_source[b] = rng
 
     def step(
         self,
         rngs: Sequence[np.random.Generator],
         active: NDArray[np.bool_] | None = None,
-        rows: slice = _ALL_ROWS,
+        parallel: bool = False,
     ) -> int:
         """Advance the members with the actions in :attr:`actions` ``(B, 2)``.
 
         Args:
-            rngs: the Generator of each member, to refill used-up noise blocks.
+            rngs: the Generator of each member, to refill used-up noise buffers.
             active: ``(B,)`` which members to advance; None: all.
-            rows: advance only this contiguous range of members (the kernels release the
-                GIL, so threads may step disjoint ranges at once; fused EKF only).
+            parallel: spread the members over numba's threads (fused EKF only; it pays off
+                from about a hundred members).
 
         Returns:
             -1, or the index of a member whose action is not finite (nothing advanced then).
@@ -530,21 +587,19 @@ class LandmarkCore(StateViews):
         params = self.models.params
         if active is None:
             active = self._all_active
-        if rows == _ALL_ROWS:  # the single env's path: no slicing, a few microseconds count
-            lo = 0
-            args = (self.actions, params, self.noise, self.state, self.world, self.obs, active)
-        else:
-            lo = rows.indices(self.batch_size)[0]
-            args = (self.actions[rows], params, self.noise[rows], self.state[rows],
-                    self.world[rows], self.obs[rows], active[rows])
-        code = step_batch(*args)
-        if code == NEED_NOISE:
-            used_up = args[6] & (args[3][:, X_NOISE_ROW] >= NOISE_BLOCK)
-            for b in np.flatnonzero(used_up) + lo:
+        kernel = step_batch_parallel if parallel and self._fused else step_batch
+        pending = self._pending
+        code = kernel(self.actions, params, self.noise, self.state, self.world, self.obs, active,
+                      pending)
+        if code == NEED_NOISE:  # a few members per call at most: refill them, step just them
+            waiting = pending.copy()
+            for b in np.flatnonzero(waiting):
                 self.refill_noise(int(b), rngs[b])
-            code = step_batch(*args)
+            code = step_batch(self.actions, params, self.noise, self.state, self.world, self.obs,
+                              waiting, pending)
+            assert code != NEED_NOISE, "a fresh noise buffer holds a step's normals"
         if code >= 0:
-            return code + lo
+            return code
         if self._fused:
             return code
         collided = self.state[:, X_STATS + S_COLLIDED] > 0.5

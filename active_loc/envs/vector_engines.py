@@ -17,11 +17,11 @@ seeded the same, so the vector env reproduces n single envs exactly.
 
 from __future__ import annotations
 
-import itertools
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import gymnasium as gym
+import numba
 import numpy as np
 from gymnasium.utils import seeding
 from numpy.typing import NDArray
@@ -91,8 +91,8 @@ class BatchedLandmarkEngine:
         template: a single env of the id (its config, spaces and reward settings are used).
         num_envs: n.
         render_envs: how many leading members keep the paths the renderer draws.
-        workers: threads that each step a contiguous share of the batch (the kernel releases
-            the GIL); used when every share has at least :data:`MIN_ROWS_PER_WORKER` members.
+        workers: numba threads the kernel spreads the members over; used when each gets at
+            least :data:`MIN_ROWS_PER_WORKER` members (and at most the cores numba has).
     """
 
     def __init__(
@@ -101,7 +101,9 @@ class BatchedLandmarkEngine:
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
         # a thread per share of the batch pays off only when the shares are large enough
-        self.threads = WorkerThreads(min(int(workers), max(1, num_envs // MIN_ROWS_PER_WORKER)))
+        self.workers = min(
+            int(workers), max(1, num_envs // MIN_ROWS_PER_WORKER), numba.config.NUMBA_NUM_THREADS
+        )
         self.config = template.config
         self.core = LandmarkCore(template.config, batch_size=num_envs)
         self.num_envs = num_envs
@@ -148,58 +150,50 @@ class BatchedLandmarkEngine:
         core = self.core
         self._write_actions(actions, active)
         rngs: list[np.random.Generator] = self.rngs  # type: ignore[assignment]
-        workers = self.threads.workers
-        if workers == 1:
-            core.step(rngs, active)
-        else:
-            bounds = np.linspace(0, self.num_envs, workers + 1).astype(int)
-            shares = [slice(int(lo), int(hi)) for lo, hi in itertools.pairwise(bounds)]
-            self.threads.run(lambda rows: core.step(rngs, active, rows), shares)
-        stats = core.state[:, X_STATS:]
-        collided = active & (stats[:, S_COLLIDED] > 0.5)
-        self.collisions += collided
-        self.steps += active
-        rewards = (
-            stats[:, S_UNCERTAINTY_REWARD] - self._step_cost
-            - np.where(collided, self._collision_penalty, 0.0)
-        )
-        rewards[~active] = 0.0
-        terminated = active & (stats[:, S_TERMINAL] > 0.5) if self._terminate else (
-            np.zeros(self.num_envs, dtype=np.bool_))
-        for b in range(min(self._render_envs, self.num_envs)):
+        if self.workers > 1:
+            numba.set_num_threads(self.workers)  # per calling thread: set before each call
+        core.step(rngs, active, parallel=self.workers > 1)
+        n = self.num_envs
+        rewards = np.empty(n)
+        terminated = np.empty(n, dtype=np.bool_)
+        step_outcomes(core.state, active, self._step_cost, self._collision_penalty,
+                      self._terminate, rewards, terminated, self.collisions, self.steps)
+        for b in range(min(self._render_envs, n)):
             if active[b]:
                 self._paths[b][0].append(core.pose[b, :2].copy())
                 self._paths[b][1].append(core.state[b, X_MEAN : X_MEAN + 2].copy())
-        return rewards, terminated, np.zeros(self.num_envs, dtype=np.bool_)
+        return rewards, terminated, np.zeros(n, dtype=np.bool_)
 
     def infos(self, mask: NDArray[np.bool_]) -> BatchInfo:
         """The members' info arrays (the keys of a single env's info, same values), with
-        ``mask`` as every ``"_key"``: all n rows are filled, whatever the mask."""
-        stats = self.core.state[:, X_STATS:]
-        collided = stats[:, S_COLLIDED] > 0.5
-        penalty = np.where(collided, -self._collision_penalty, 0.0)
+        ``mask`` as every ``"_key"`` (one read-only array shared by the keys): all n rows are
+        filled, whatever the mask."""
+        columns = self.core.state[:, X_STATS:].T.copy()  # (N_STATS, n): a row per metric
+        mask = mask.copy()
+        mask.flags.writeable = False
+        collided = columns[S_COLLIDED] > 0.5
         terms = {
-            self._reward_name: stats[:, S_UNCERTAINTY_REWARD].copy(),
+            self._reward_name: columns[S_UNCERTAINTY_REWARD],
             "step_cost": np.full(self.num_envs, -self._step_cost),
-            "collision": penalty,
+            "collision": np.where(collided, -self._collision_penalty, 0.0),
         }
         info: BatchInfo = {
-            "pose_error": stats[:, S_POS_ERR].copy(),
-            "heading_error": stats[:, S_HEAD_ERR].copy(),
-            "entropy": stats[:, S_ENTROPY].copy(),
-            "localized": stats[:, S_LOCALIZED] > 0.5,
-            "is_success": stats[:, S_SUCCESS] > 0.5,
+            "pose_error": columns[S_POS_ERR],
+            "heading_error": columns[S_HEAD_ERR],
+            "entropy": columns[S_ENTROPY],
+            "localized": columns[S_LOCALIZED] > 0.5,
+            "is_success": columns[S_SUCCESS] > 0.5,
             "collisions": self.collisions.copy(),
             "reward_terms": with_masks(terms, mask),
-            "n_visible": stats[:, S_N_VISIBLE].astype(np.int64),
-            "nis": stats[:, S_NIS].copy(),
-            "kidnapped": stats[:, S_KIDNAPPED] > 0.5,
+            "n_visible": columns[S_N_VISIBLE].astype(np.int64),
+            "nis": columns[S_NIS],
+            "kidnapped": columns[S_KIDNAPPED] > 0.5,
             "association_accuracy": np.ones(self.num_envs),
         }
         return with_masks(info, mask)
 
     def close(self) -> None:
-        self.threads.close()
+        pass
 
     def frame(self, b: int) -> Any:
         """The renderer's frame of member ``b`` (< ``render_envs``)."""
@@ -259,6 +253,11 @@ class MemberEngine:
         )
         self._infos: list[dict[str, Any]] = [{} for _ in envs]
 
+    @property
+    def workers(self) -> int:
+        """Threads the members are stepped on."""
+        return self.threads.workers
+
     def reset_member(self, b: int, seed: int | None, options: dict[str, Any] | None) -> None:
         self.obs[b], self._infos[b] = self.envs[b].reset(seed=seed, options=options)
 
@@ -302,12 +301,34 @@ class MemberEngine:
         return self.envs[b].render()
 
 
+@numba.njit(cache=True, nogil=True)
+def step_outcomes(
+    state: NDArray, active: NDArray, step_cost: float, collision_penalty: float,
+    terminate: bool, rewards: NDArray, terminated: NDArray, collisions: NDArray,
+    steps: NDArray,
+) -> None:
+    """Rewards and terminations ``(n,)`` (out) of a batch step read off the metrics in
+    ``state``, as a single env computes them; counts the active members' collisions and
+    steps. Inactive members get reward 0 and are not terminated."""
+    for b in range(state.shape[0]):
+        if not active[b]:
+            rewards[b] = 0.0
+            terminated[b] = False
+            continue
+        collided = state[b, X_STATS + S_COLLIDED] > 0.5
+        penalty = collision_penalty if collided else 0.0
+        rewards[b] = state[b, X_STATS + S_UNCERTAINTY_REWARD] - step_cost - penalty
+        terminated[b] = terminate and state[b, X_STATS + S_TERMINAL] > 0.5
+        collisions[b] += collided
+        steps[b] += 1
+
+
 def with_masks(info: dict[str, Any], mask: NDArray[np.bool_]) -> BatchInfo:
-    """``info`` with a ``"_key"`` mask for every key (nested dicts included)."""
+    """``info`` with ``mask`` as the ``"_key"`` of every key (nested dicts included)."""
     out: BatchInfo = {}
     for key, value in info.items():
         out[key] = value
-        out[f"_{key}"] = mask.copy()
+        out[f"_{key}"] = mask
     return out
 
 

@@ -48,12 +48,11 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         render_mode: None or ``"rgb_array"``.
         render_envs: how many sub-envs ``render()`` draws, tiled in a grid (1: the first
             sub-env's frame as is).
-        workers: threads stepping shares of the sub-envs (the kernels release the GIL). None:
-            one per CPU core, at most 2, for the ids stepped sub-env by sub-env (MCL, grid,
-            maze: 1.3x to 2x on 2 cores); 1 for the batched EKF ids, whose per-sub-env noise
-            draws hold the GIL, so that threads measured no faster there (they split the
-            batch only when each share has 64 sub-envs or more). The results are the same for
-            any value.
+        workers: threads stepping the sub-envs (the kernels release the GIL). None: one per
+            CPU core, at most 2. The MCL, grid and maze ids step their sub-envs in turn on
+            Python threads (1.3x to 2x on 2 cores); the batched EKF ids spread one kernel
+            over numba's threads once each gets 64 sub-envs or more. The results are the
+            same for any value.
         env_class: the single env class (``ActiveLocalizationEnv`` or ``MazeEnv``).
         **env_kwargs: the single env's kwargs (``scenario`` and config fields, or the maze's).
 
@@ -105,14 +104,12 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         template = env_class(**env_kwargs)
         self.engine: BatchedLandmarkEngine | MemberEngine
         self._renderer: Any = None
+        if workers is None:
+            workers = min(2, os.cpu_count() or 1)
         if batched_core(template):
             assert isinstance(template, ActiveLocalizationEnv)
-            self.engine = BatchedLandmarkEngine(
-                template, self.num_envs, render_envs, 1 if workers is None else workers
-            )
+            self.engine = BatchedLandmarkEngine(template, self.num_envs, render_envs, workers)
         else:
-            if workers is None:
-                workers = min(2, os.cpu_count() or 1)
             members = [template] + [env_class(**env_kwargs) for _ in range(1, self.num_envs)]
             if render_mode is not None:
                 for b in range(render_envs):
@@ -126,6 +123,10 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         n = self.num_envs
         self._elapsed = np.zeros(n, dtype=np.int64)
         self._needs_reset = np.zeros(n, dtype=np.bool_)  # ended last step (autoreset pending)
+        self._none = np.zeros(n, dtype=np.bool_)  # read-only masks of no and every sub-env
+        self._none.flags.writeable = False
+        self._all = np.ones(n, dtype=np.bool_)
+        self._all.flags.writeable = False
         self._has_reset = False
 
     # -- gymnasium API ----------------------------------------------------------------------
@@ -149,7 +150,7 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         for b in np.flatnonzero(mask):
             self.engine.reset_member(int(b), seeds[b], options)
         self._elapsed[mask] = 0
-        self._needs_reset[mask] = False
+        self._needs_reset = self._needs_reset & ~mask
         self._has_reset = True
         return self.engine.obs.copy(), self.engine.infos(mask)
 
@@ -167,10 +168,10 @@ class ActiveLocalizationVectorEnv(VectorEnv):
                 f"sub-envs {ended} have ended and autoreset is disabled: reset them with "
                 "reset(options={'reset_mask': mask}) before stepping"
             )
-        resetting = self._needs_reset if mode == AutoresetMode.NEXT_STEP else np.zeros(n, bool)
+        resetting = self._needs_reset if mode == AutoresetMode.NEXT_STEP else self._none
         active = ~resetting
         rewards, terminated, truncated = engine.step(actions, active)
-        self._elapsed[active] += 1
+        self._elapsed += active
         if self.max_episode_steps is not None:
             truncated |= active & (self._elapsed >= self.max_episode_steps)
         ended = terminated | truncated
@@ -183,15 +184,15 @@ class ActiveLocalizationVectorEnv(VectorEnv):
             for b in np.flatnonzero(ended):
                 engine.reset_member(int(b), None, None)
             self._elapsed[ended] = 0
-            infos = engine.infos(np.ones(n, dtype=np.bool_))
+            infos = engine.infos(self._all)
             infos.update(final_obs=final_obs, _final_obs=ended.copy(),
                          final_info=final_info, _final_info=ended.copy())
         else:
-            for b in np.flatnonzero(resetting):
-                engine.reset_member(int(b), None, None)
-            self._elapsed[resetting] = 0
-            infos = engine.infos(np.ones(n, dtype=np.bool_))
-        self._needs_reset = ended if mode != AutoresetMode.SAME_STEP else np.zeros(n, bool)
+            for b in np.flatnonzero(resetting).tolist():
+                engine.reset_member(b, None, None)
+                self._elapsed[b] = 0
+            infos = engine.infos(self._all)
+        self._needs_reset = ended if mode != AutoresetMode.SAME_STEP else self._none
         return engine.obs.copy(), rewards, terminated, truncated, infos
 
     def render(self) -> NDArray[np.uint8] | None:

@@ -98,18 +98,22 @@ def measure_landmarks(
     normals: NDArray,
     z: NDArray,
     visible: NDArray,
-) -> None:
+) -> int:
     """Simulate one scan of all landmarks from the true ``pose``.
 
     Args:
         landmarks: ``(N, 2)`` positions; only the first ``count`` rows are real (the rest pad).
         noise_root: ``(l00, l10, l11)``, the lower Cholesky factor L of R (L L^T = R).
-        normals: ``(2 N,)`` N(0, 1) draws, landmark j's at ``2 j`` and ``2 j + 1``.
+        normals: N(0, 1) draws, consumed in order, 2 per landmark in view (at most ``2 N``).
         z: ``(N, 2)`` out: measurements (zero where not visible).
         visible: ``(N,)`` out: which landmarks were seen.
+
+    Returns:
+        How many normals were used (2 per landmark seen).
     """
     l00, l10, l11 = noise_root
     x, y, theta = pose[0], pose[1], pose[2]
+    used = 0
     for j in range(landmarks.shape[0]):
         mx, my = landmarks[j, 0], landmarks[j, 1]
         seen = j < count and in_view(x, y, theta, mx, my, fov, max_range)
@@ -119,11 +123,13 @@ def measure_landmarks(
             z[j, 1] = 0.0
             continue
         z0, z1 = measurement(kind, x, y, theta, mx, my)
-        e0 = normals[2 * j]
-        e1 = normals[2 * j + 1]
+        e0 = normals[used]
+        e1 = normals[used + 1]
+        used += 2
         z[j, 0] = z0 + l00 * e0
         z1 += l10 * e0 + l11 * e1
         z[j, 1] = wrap_angle_scalar(z1) if kind == RANGE_BEARING else z1
+    return used
 
 
 def _check_sensor(name: str, noise_cov: NDArray, fov: float, max_range: float) -> NDArray:

@@ -226,7 +226,7 @@ def test_threads_do_not_change_the_results(env_id: str, n: int, kwargs: dict) ->
     for workers in (1, 2):
         envs = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point",
                             workers=workers, max_episode_steps=6, **kwargs)
-        assert envs.engine.threads.workers == workers
+        assert envs.engine.workers == workers
         obs, _ = envs.reset(seed=3)
         rng = np.random.default_rng(3)
         trace = [obs]

@@ -194,7 +194,7 @@ class ActiveLocalizationEnv(gym.Env):
             self._true_path = [self.core.pose[0, :2].copy()]
             self._belief_path = [self.core.state[0, X_MEAN : X_MEAN + 2].copy()]
         row = self.core.state[0].tolist()
-        info = self._info(row, False, row[_UNCERTAINTY])
+        info = self._info(row)
         if self.render_mode == "human":
             self.render()
         return self.core.obs[0].copy(), info
@@ -217,7 +217,7 @@ class ActiveLocalizationEnv(gym.Env):
         if collided:
             self._collisions += 1
         uncertainty = row[_UNCERTAINTY]
-        info = self._info(row, collided, uncertainty)
+        info = self._info(row)
         reward = uncertainty - self._step_cost - (self._collision_penalty if collided else 0.0)
         if self.render_mode is not None:
             self._true_path.append(core.pose[0, :2].copy())
@@ -299,23 +299,12 @@ class ActiveLocalizationEnv(gym.Env):
             raise ValueError(f"action must be an integer in [0, {self._n_actions}), got {index}")
         self.core.actions[0] = self.core.models.primitives[index]
 
-    def _info(self, row: list[float], collided: bool, uncertainty: float) -> dict[str, Any]:
-        """The info dict from a row of the core's state (as a list of floats)."""
-        return {
-            "pose_error": row[_POS_ERR],
-            "heading_error": row[_HEAD_ERR],
-            "entropy": row[_ENTROPY],
-            "localized": row[_LOCALIZED] > 0.5,
-            "is_success": row[_SUCCESS] > 0.5,
-            "collisions": self._collisions,
-            "reward_terms": reward_terms(
-                self._reward_name, uncertainty, collided, self._step_cost, self._collision_penalty
-            ),
-            "n_visible": int(row[_N_VISIBLE]),
-            "nis": row[_NIS],
-            "kidnapped": row[_KIDNAPPED] > 0.5,
-            "association_accuracy": self._association_accuracy(),
-        }
+    def _info(self, row: list[float]) -> dict[str, Any]:
+        """The info dict from the core's state row (as a list of floats)."""
+        return info_from_stats(
+            row[X_STATS:], self._collisions, self._association_accuracy(), self._reward_name,
+            self._step_cost, self._collision_penalty,
+        )
 
     def _association_accuracy(self) -> float:
         """This step's data-association accuracy against the true correspondences; 1.0 when
@@ -331,6 +320,31 @@ class ActiveLocalizationEnv(gym.Env):
         return build_frame(
             self.core, 0, self._true_path, self._belief_path, self._steps, title
         )
+
+
+def info_from_stats(
+    stats: list[float], collisions: int, association_accuracy: float, reward_name: str,
+    step_cost: float, collision_penalty: float,
+) -> dict[str, Any]:
+    """A step's info dict from a member's metrics (``state[b, X_STATS:]`` as a list of
+    floats): what the single env returns, and what the vector env hands out per sub-env
+    (:meth:`~active_loc.envs.vector_env.ActiveLocalizationVectorEnv.step_with_info_dicts`)."""
+    return {
+        "pose_error": stats[S_POS_ERR],
+        "heading_error": stats[S_HEAD_ERR],
+        "entropy": stats[S_ENTROPY],
+        "localized": stats[S_LOCALIZED] > 0.5,
+        "is_success": stats[S_SUCCESS] > 0.5,
+        "collisions": collisions,
+        "reward_terms": reward_terms(
+            reward_name, stats[S_UNCERTAINTY_REWARD], stats[S_COLLIDED] > 0.5, step_cost,
+            collision_penalty,
+        ),
+        "n_visible": int(stats[S_N_VISIBLE]),
+        "nis": stats[S_NIS],
+        "kidnapped": stats[S_KIDNAPPED] > 0.5,
+        "association_accuracy": association_accuracy,
+    }
 
 
 def build_frame(

@@ -42,7 +42,7 @@ from active_loc.envs.landmark_core import (
     X_STATS,
     LandmarkCore,
 )
-from active_loc.envs.localization_env import ActiveLocalizationEnv, build_frame
+from active_loc.envs.localization_env import ActiveLocalizationEnv, build_frame, info_from_stats
 
 #: the fewest members a worker thread of the batched engine steps (fewer: one thread)
 MIN_ROWS_PER_WORKER = 64
@@ -192,6 +192,17 @@ class BatchedLandmarkEngine:
         }
         return with_masks(info, mask)
 
+    def info_dicts(self, rows: list[int]) -> list[dict[str, Any]]:
+        """The info dicts of the members in ``rows``, as single envs return them (cheaper than
+        :meth:`infos` followed by unbatching, for SB3's list of dicts)."""
+        stats = self.core.state[rows, X_STATS:].tolist()
+        collisions = self.collisions[rows].tolist()
+        name, cost, penalty = self._reward_name, self._step_cost, self._collision_penalty
+        return [
+            info_from_stats(row, count, 1.0, name, cost, penalty)
+            for row, count in zip(stats, collisions, strict=True)
+        ]
+
     def close(self) -> None:
         pass
 
@@ -296,6 +307,10 @@ class MemberEngine:
         for b in np.flatnonzero(mask):
             add_member_info(out, self._infos[b], int(b), self.num_envs)
         return out
+
+    def info_dicts(self, rows: list[int]) -> list[dict[str, Any]]:
+        """The last info dicts of the members in ``rows`` (copies)."""
+        return [dict(self._infos[b]) for b in rows]
 
     def frame(self, b: int) -> Any:
         return self.envs[b].render()

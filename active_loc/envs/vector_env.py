@@ -127,6 +127,7 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         self._none.flags.writeable = False
         self._all = np.ones(n, dtype=np.bool_)
         self._all.flags.writeable = False
+        self._rows = list(range(n))
         self._has_reset = False
 
     # -- gymnasium API ----------------------------------------------------------------------
@@ -157,43 +158,52 @@ class ActiveLocalizationVectorEnv(VectorEnv):
     def step(
         self, actions: Any
     ) -> tuple[NDArray, NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], BatchInfo]:
-        if not self._has_reset:
-            raise RuntimeError("call reset() before step()")
         engine = self.engine
         n = self.num_envs
-        mode = self.autoreset_mode
-        if mode == AutoresetMode.DISABLED and self._needs_reset.any():
-            ended = np.flatnonzero(self._needs_reset).tolist()
-            raise RuntimeError(
-                f"sub-envs {ended} have ended and autoreset is disabled: reset them with "
-                "reset(options={'reset_mask': mask}) before stepping"
-            )
-        resetting = self._needs_reset if mode == AutoresetMode.NEXT_STEP else self._none
-        active = ~resetting
-        rewards, terminated, truncated = engine.step(actions, active)
-        self._elapsed += active
-        if self.max_episode_steps is not None:
-            truncated |= active & (self._elapsed >= self.max_episode_steps)
+        rewards, terminated, truncated, resetting = self._advance(actions)
         ended = terminated | truncated
-
-        if mode == AutoresetMode.SAME_STEP and ended.any():
+        if self.autoreset_mode == AutoresetMode.SAME_STEP and ended.any():
             final_obs = np.full(n, None, dtype=object)
             for b in np.flatnonzero(ended):
                 final_obs[b] = engine.obs[b].copy()
             final_info = engine.infos(ended)
-            for b in np.flatnonzero(ended):
-                engine.reset_member(int(b), None, None)
-            self._elapsed[ended] = 0
+            for b in np.flatnonzero(ended).tolist():
+                self._reset_ended(b)
             infos = engine.infos(self._all)
             infos.update(final_obs=final_obs, _final_obs=ended.copy(),
                          final_info=final_info, _final_info=ended.copy())
         else:
             for b in np.flatnonzero(resetting).tolist():
-                engine.reset_member(b, None, None)
-                self._elapsed[b] = 0
+                self._reset_ended(b)
             infos = engine.infos(self._all)
-        self._needs_reset = ended if mode != AutoresetMode.SAME_STEP else self._none
         return engine.obs.copy(), rewards, terminated, truncated, infos
+
+    def step_with_info_dicts(
+        self, actions: Any
+    ) -> tuple[NDArray, NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_],
+               list[dict[str, Any]], dict[int, dict[str, Any]]]:
+        """:meth:`step` with SAME_STEP autoreset, the infos as one dict per sub-env (what
+        stable-baselines3 and other list-of-dicts libraries take), built without the
+        batched arrays.
+
+        Returns:
+            ``(obs, rewards, terminated, truncated, infos, reset_infos)``: an ended sub-env's
+            obs is its reset observation, its entry of ``infos`` is the last step's info
+            plus ``"terminal_observation"``, and ``reset_infos[i]`` its reset info.
+        """
+        if self.autoreset_mode != AutoresetMode.SAME_STEP:
+            raise RuntimeError(
+                f"step_with_info_dicts needs autoreset_mode=SAME_STEP, got {self.autoreset_mode}"
+            )
+        engine = self.engine
+        rewards, terminated, truncated, _ = self._advance(actions)
+        infos = engine.info_dicts(self._rows)
+        reset_infos: dict[int, dict[str, Any]] = {}
+        for b in np.flatnonzero(terminated | truncated).tolist():
+            infos[b]["terminal_observation"] = engine.obs[b].copy()
+            self._reset_ended(b)
+            reset_infos[b] = engine.info_dicts([b])[0]
+        return engine.obs.copy(), rewards, terminated, truncated, infos, reset_infos
 
     def render(self) -> NDArray[np.uint8] | None:
         """The first sub-env's frame, or the first ``render_envs`` frames tiled in a grid."""
@@ -212,6 +222,36 @@ class ActiveLocalizationVectorEnv(VectorEnv):
             self._renderer = None
 
     # -- helpers ----------------------------------------------------------------------------
+
+    def _advance(
+        self, actions: Any
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_]]:
+        """Step the sub-envs that are not waiting for a NEXT_STEP reset; ``(rewards,
+        terminated, truncated, resetting)`` with the time limit applied. Ended sub-envs are
+        left for the caller to reset (SAME_STEP) or marked for the next step."""
+        if not self._has_reset:
+            raise RuntimeError("call reset() before step()")
+        mode = self.autoreset_mode
+        if mode == AutoresetMode.DISABLED and self._needs_reset.any():
+            ended = np.flatnonzero(self._needs_reset).tolist()
+            raise RuntimeError(
+                f"sub-envs {ended} have ended and autoreset is disabled: reset them with "
+                "reset(options={'reset_mask': mask}) before stepping"
+            )
+        resetting = self._needs_reset if mode == AutoresetMode.NEXT_STEP else self._none
+        active = ~resetting
+        rewards, terminated, truncated = self.engine.step(actions, active)
+        self._elapsed += active
+        if self.max_episode_steps is not None:
+            truncated |= active & (self._elapsed >= self.max_episode_steps)
+        if mode != AutoresetMode.SAME_STEP:
+            self._needs_reset = terminated | truncated
+        return rewards, terminated, truncated, resetting
+
+    def _reset_ended(self, b: int) -> None:
+        """Autoreset sub-env ``b`` (its Generator goes on)."""
+        self.engine.reset_member(b, None, None)
+        self._elapsed[b] = 0
 
     def _member_frame(self, b: int) -> NDArray[np.uint8]:
         engine = self.engine

@@ -93,19 +93,15 @@ class NativeVecEnv(VecEnv):
         """``(obs (n, *obs_shape), rewards (n,) float32, dones (n,) bool, infos)``; an ended
         sub-env's obs is its reset observation and its info is the last step's, plus
         ``"terminal_observation"`` (its reset info goes to ``reset_infos``)."""
-        obs, rewards, terminated, truncated, batch = self.vector_env.step(self._actions)
-        dones = terminated | truncated
-        infos = unbatch_info(batch, self.num_envs)  # the reset infos, on ended sub-envs
-        if dones.any():
-            final_infos = unbatch_info(batch["final_info"], self.num_envs)
-            for i in np.flatnonzero(dones):
-                self.reset_infos[i] = infos[i]
-                infos[i] = final_infos[i]  # is_success etc. of the last step, for Monitor
-                infos[i]["terminal_observation"] = batch["final_obs"][i]
-        for i, info in enumerate(infos):
-            info["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
+        obs, rewards, terminated, truncated, infos, reset_infos = (
+            self.vector_env.unwrapped.step_with_info_dicts(self._actions)
+        )
+        for i, reset_info in reset_infos.items():
+            self.reset_infos[i] = reset_info
+        for info, cut in zip(infos, (truncated & ~terminated).tolist(), strict=True):
+            info["TimeLimit.truncated"] = cut
         # float32 rewards, as DummyVecEnv's buffer gives them
-        return obs, rewards.astype(np.float32), dones, infos
+        return obs, rewards.astype(np.float32), terminated | truncated, infos
 
     def close(self) -> None:
         self.vector_env.close()
@@ -192,25 +188,38 @@ def make_native_vec_env(
     return env
 
 
-def unbatch_info(batch: dict[str, Any], n: int) -> list[dict[str, Any]]:
-    """Gymnasium's batched info (arrays ``(n,)`` with ``"_key"`` masks) as n plain dicts of
-    Python scalars: row i holds the keys whose mask is set at i; nested dicts recurse.
-    ``final_obs`` and ``final_info`` are left out."""
+def unbatch_info(
+    batch: dict[str, Any], n: int, rows: list[int] | None = None
+) -> list[dict[str, Any]]:
+    """Gymnasium's batched info (arrays ``(n,)`` with ``"_key"`` masks) as plain dicts of
+    Python scalars, one per sub-env in ``rows`` (default: all n): a sub-env's dict holds the
+    keys whose mask is set for it; nested dicts recurse. ``final_obs`` and ``final_info`` are
+    left out."""
     keys = [key for key in batch if f"_{key}" in batch and key not in _FINAL_KEYS]
+    picked = list(range(n)) if rows is None else rows
     columns = [
-        unbatch_info(batch[key], n) if isinstance(batch[key], dict)
-        else np.asarray(batch[key]).tolist()
+        unbatch_info(batch[key], n, rows) if isinstance(batch[key], dict)
+        else (np.asarray(batch[key]) if rows is None else np.asarray(batch[key])[rows]).tolist()
         for key in keys
     ]
     masks = [batch[f"_{key}"] for key in keys]
-    if keys and all(mask.all() for mask in masks):
+    if keys and _all_set(masks, rows):
         # every row has every key (the native env's step infos): build the rows in C
         return [dict(zip(keys, row, strict=True)) for row in zip(*columns, strict=True)]
-    rows: list[dict[str, Any]] = [{} for _ in range(n)]
+    out: list[dict[str, Any]] = [{} for _ in picked]
     for key, values, mask in zip(keys, columns, masks, strict=True):
-        for i in np.flatnonzero(mask).tolist():
-            rows[i][key] = values[i]
-    return rows
+        for k, i in enumerate(picked):
+            if mask[i]:
+                out[k][key] = values[k]
+    return out
+
+
+def _all_set(masks: list[NDArray[np.bool_]], rows: list[int] | None) -> bool:
+    """Whether every mask is set at every row; a mask shared by many keys is checked once."""
+    distinct = {id(mask): mask for mask in masks}.values()
+    if rows is None:
+        return all(bool(mask.all()) for mask in distinct)
+    return all(bool(mask[rows].all()) for mask in distinct)
 
 
 def _check_env_id(env_id: Any) -> None:

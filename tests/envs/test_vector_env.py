@@ -237,3 +237,41 @@ def test_threads_do_not_change_the_results(env_id: str, n: int, kwargs: dict) ->
         runs.append(trace)
     for a, b in zip(*runs, strict=True):
         assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("env_id", ["ActiveLoc/LandmarkEKF-v0", "ActiveLoc/GridMCL-v0"])
+def test_info_dicts_are_the_single_envs_infos(env_id: str) -> None:
+    """``step_with_info_dicts`` (the SB3 path) gives each sub-env the info dict, final
+    observation and reset info of a single env seeded seed + i, episode ends included."""
+    kwargs = {"n_particles": 500} if "MCL" in env_id else {}
+    native = gym.make_vec(env_id, N_ENVS, vectorization_mode="vector_entry_point",
+                          autoreset_mode=AutoresetMode.SAME_STEP, max_episode_steps=LIMIT,
+                          **kwargs)
+    singles = [gym.make(env_id, max_episode_steps=LIMIT, **kwargs) for _ in range(N_ENVS)]
+    native.reset(seed=5)
+    for i, env in enumerate(singles):
+        env.reset(seed=5 + i)
+    rng = np.random.default_rng(5)
+    ends = 0
+    for _ in range(2 * LIMIT + 1):
+        actions = vector_actions(native.action_space, rng)
+        obs, rewards, terminated, truncated, infos, reset_infos = (
+            native.unwrapped.step_with_info_dicts(actions)
+        )
+        for i, env in enumerate(singles):
+            obs_i, reward_i, term_i, trunc_i, info_i = env.step(actions[i])
+            assert (rewards[i], terminated[i], truncated[i]) == (reward_i, term_i, trunc_i)
+            if term_i or trunc_i:
+                ends += 1
+                assert np.array_equal(infos[i].pop("terminal_observation"), obs_i)
+                obs_i, info_reset = env.reset()
+                assert reset_infos[i] == info_reset
+            assert infos[i] == info_i
+            assert np.array_equal(obs[i], obs_i)
+        assert set(reset_infos) == set(np.flatnonzero(terminated | truncated).tolist())
+    assert ends >= N_ENVS * 2
+
+    next_step = gym.make_vec(env_id, 1, vectorization_mode="vector_entry_point", **kwargs)
+    next_step.reset(seed=0)
+    with pytest.raises(RuntimeError, match="needs autoreset_mode=SAME_STEP"):
+        next_step.unwrapped.step_with_info_dicts(vector_actions(next_step.action_space, rng))

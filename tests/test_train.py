@@ -237,7 +237,8 @@ def test_auto_vec_env_is_native_where_the_batch_is_one_kernel_call() -> None:
     from active_loc.train import resolve_vec_env
 
     assert resolve_vec_env("auto", "ActiveLoc/LandmarkEKF-v0", {}, 64) == "native"
-    assert resolve_vec_env("auto", "ActiveLoc/LandmarkEKF-v0", {}, 8) == "dummy"
+    assert resolve_vec_env("auto", "ActiveLoc/LandmarkEKF-v0", {}, 8) == "native"
+    assert resolve_vec_env("auto", "ActiveLoc/LandmarkEKF-v0", {}, 4) == "dummy"
     assert resolve_vec_env("auto", "ActiveLoc/Textbook-v0", {"action_type": "discrete"}) == "native"
     assert resolve_vec_env("auto", "ActiveLoc/GridMCL-v0", {}) == "dummy"
     assert resolve_vec_env("auto", "ActiveLoc/Maze-v0", {"size": 7}) == "dummy"

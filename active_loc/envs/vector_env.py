@@ -198,11 +198,11 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         engine = self.engine
         rewards, terminated, truncated, _ = self._advance(actions)
         infos = engine.info_dicts(self._rows)
-        reset_infos: dict[int, dict[str, Any]] = {}
-        for b in np.flatnonzero(terminated | truncated).tolist():
+        ended = np.flatnonzero(terminated | truncated).tolist()
+        for b in ended:
             infos[b]["terminal_observation"] = engine.obs[b].copy()
             self._reset_ended(b)
-            reset_infos[b] = engine.info_dicts([b])[0]
+        reset_infos = dict(zip(ended, engine.info_dicts(ended), strict=True))
         return engine.obs.copy(), rewards, terminated, truncated, infos, reset_infos
 
     def render(self) -> NDArray[np.uint8] | None:

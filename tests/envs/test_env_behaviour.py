@@ -21,7 +21,7 @@ import active_loc
 from active_loc.beliefs import MCLBelief
 from active_loc.beliefs.grid import GridBelief
 from active_loc.envs import ActiveLocalizationEnv
-from active_loc.envs.landmark_core import S_ENTROPY, S_LOGDET, S_TRACE
+from active_loc.envs.landmark_core import S_ENTROPY, S_LOGDET, S_TRACE, X_NOISE_CURSOR
 from active_loc.maps import OccupancyGrid
 
 ENV_IDS = [env_id for env_id, _, _ in active_loc.ENV_IDS]
@@ -583,3 +583,31 @@ def test_filterpy_backend_matches_numba_backend(env_id: str) -> None:
             np.testing.assert_allclose(
                 filterpy_env.reset()[0], numba_env.reset()[0], rtol=0, atol=1e-6
             )
+
+
+def test_step_noise_is_drawn_for_the_landmarks_in_view_only() -> None:
+    """A step uses 3 normals for the motion and 2 per landmark seen (the buffer's cursor
+    moves by that much); an unseeded reset goes on with the buffer, a reseeded one drops it,
+    so that a seed alone fixes the episode."""
+    env = gym.make(LANDMARK)
+    core = env.unwrapped.core
+    env.reset(seed=1)
+    rng = np.random.default_rng(1)
+    cursor = None
+    for _ in range(100):
+        _, _, terminated, _, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+        now = int(core.state[0, X_NOISE_CURSOR])
+        if cursor is not None and now > cursor:  # not refilled on this step
+            assert now - cursor == 3 + 2 * info["n_visible"]
+        cursor = now
+        if terminated:
+            break
+    assert core.noise_source[0] is env.unwrapped.np_random
+    env.reset()  # the same Generator goes on: so does its buffer
+    assert int(core.state[0, X_NOISE_CURSOR]) == cursor
+    env.reset(seed=7)  # a new Generator: the old buffer is dropped
+    assert core.state[0, X_NOISE_CURSOR] >= core.noise.shape[1]
+    again = gym.make(LANDMARK)
+    again.reset(seed=7)
+    assert np.array_equal(env.step(np.array([0.5, 0.1], dtype=np.float32))[0],
+                          again.step(np.array([0.5, 0.1], dtype=np.float32))[0])

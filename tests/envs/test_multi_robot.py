@@ -202,14 +202,17 @@ def test_mcl_fusion_waits_between_fusions_of_a_pair() -> None:
     common = {"belief": "mcl", "n_particles": 500, "fusion_samples": 500,
               "initial_belief": ("uniform", "gaussian"), "initial_error_std": (0.0, 0.0, 0.0),
               "initial_belief_std": (0.03, 0.03, 0.01), "detection_fov": 2 * np.pi,
-              "detection_max_range": 30.0, "fusion_interval": 5}
+              "detection_max_range": 30.0, "fusion_interval": 3}
     for fuse in (True, False):
         e = parallel_env(2, fuse_detections=fuse, **common)
         e.reset(seed=1)
         results = drive(e, 12)
         fused_steps = [t + 1 for t, step in enumerate(results) if step[4]["robot_0"]["fused"]]
-        # robot_1 is localized from the start, stops after step 1, and is always in view
-        assert fused_steps == ([1, 6, 11] if fuse else [])
+        # robot_1 is localized from the start, stops after step 1, and is always in view:
+        # robot_0 fuses its detection every third step until it is localized itself
+        every_third = [t for t in (1, 4, 7, 10) if t <= len(results)]
+        assert len(every_third) >= 2
+        assert fused_steps == (every_third if fuse else [])
         assert not results[0][4]["robot_1"]["fused"] and results[0][2]["robot_1"]
         assert all(set(step[4]) == {"robot_0"} for step in results[1:])
 

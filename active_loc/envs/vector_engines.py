@@ -1,10 +1,12 @@
 """What steps the members of :class:`~active_loc.envs.vector_env.ActiveLocalizationVectorEnv`.
 
-Two engines with one interface (``obs``, ``reset_member``, ``step``, ``infos``, ``frame``):
+Two engines with one interface (``obs``, ``reset_member``, ``step``, ``infos``,
+``info_dicts``, ``frame``, ``workers``):
 
 * :class:`BatchedLandmarkEngine`: the EKF landmark ids. One :class:`LandmarkCore` with
-  B = n members advances the whole batch in one numba kernel call, and the info arrays are
-  read off its state matrix with numpy: no Python loop over members on a step's path.
+  B = n members advances the whole batch in one numba kernel call (spread over numba's
+  threads for large batches), and the info arrays are read off its state matrix with numpy:
+  no Python loop over members on a step's path.
 * :class:`MemberEngine`: every other id (MCL, grid Markov, unknown correspondences, the maze).
   Their cores hold one episode each, so the engine keeps n unwrapped single envs and steps
   them on worker threads, each its own share (the particle and grid kernels release the

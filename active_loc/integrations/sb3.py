@@ -188,38 +188,26 @@ def make_native_vec_env(
     return env
 
 
-def unbatch_info(
-    batch: dict[str, Any], n: int, rows: list[int] | None = None
-) -> list[dict[str, Any]]:
-    """Gymnasium's batched info (arrays ``(n,)`` with ``"_key"`` masks) as plain dicts of
-    Python scalars, one per sub-env in ``rows`` (default: all n): a sub-env's dict holds the
-    keys whose mask is set for it; nested dicts recurse. ``final_obs`` and ``final_info`` are
-    left out."""
+def unbatch_info(batch: dict[str, Any], n: int) -> list[dict[str, Any]]:
+    """Gymnasium's batched info (arrays ``(n,)`` with ``"_key"`` masks) as n plain dicts of
+    Python scalars: row i holds the keys whose mask is set at i; nested dicts recurse.
+    ``final_obs`` and ``final_info`` are left out."""
     keys = [key for key in batch if f"_{key}" in batch and key not in _FINAL_KEYS]
-    picked = list(range(n)) if rows is None else rows
     columns = [
-        unbatch_info(batch[key], n, rows) if isinstance(batch[key], dict)
-        else (np.asarray(batch[key]) if rows is None else np.asarray(batch[key])[rows]).tolist()
+        unbatch_info(batch[key], n) if isinstance(batch[key], dict)
+        else np.asarray(batch[key]).tolist()
         for key in keys
     ]
     masks = [batch[f"_{key}"] for key in keys]
-    if keys and _all_set(masks, rows):
-        # every row has every key (the native env's step infos): build the rows in C
+    # one mask is often shared by every key: check each distinct one once
+    if keys and all(mask.all() for mask in {id(mask): mask for mask in masks}.values()):
+        # every row has every key: build the rows in C
         return [dict(zip(keys, row, strict=True)) for row in zip(*columns, strict=True)]
-    out: list[dict[str, Any]] = [{} for _ in picked]
+    rows: list[dict[str, Any]] = [{} for _ in range(n)]
     for key, values, mask in zip(keys, columns, masks, strict=True):
-        for k, i in enumerate(picked):
-            if mask[i]:
-                out[k][key] = values[k]
-    return out
-
-
-def _all_set(masks: list[NDArray[np.bool_]], rows: list[int] | None) -> bool:
-    """Whether every mask is set at every row; a mask shared by many keys is checked once."""
-    distinct = {id(mask): mask for mask in masks}.values()
-    if rows is None:
-        return all(bool(mask.all()) for mask in distinct)
-    return all(bool(mask[rows].all()) for mask in distinct)
+        for i in np.flatnonzero(mask).tolist():
+            rows[i][key] = values[i]
+    return rows
 
 
 def _check_env_id(env_id: Any) -> None:

@@ -194,11 +194,12 @@ class BatchedLandmarkEngine:
         }
         return with_masks(info, mask)
 
-    def info_dicts(self, rows: list[int]) -> list[dict[str, Any]]:
-        """The info dicts of the members in ``rows``, as single envs return them (cheaper than
-        :meth:`infos` followed by unbatching, for SB3's list of dicts)."""
-        stats = self.core.state[rows, X_STATS:].tolist()
-        collisions = self.collisions[rows].tolist()
+    def info_dicts(self, rows: list[int] | None = None) -> list[dict[str, Any]]:
+        """The info dicts of the members in ``rows`` (None: all), as single envs return them
+        (cheaper than :meth:`infos` followed by unbatching, for SB3's list of dicts)."""
+        picked = slice(None) if rows is None else rows
+        stats = self.core.state[picked, X_STATS:].tolist()
+        collisions = self.collisions[picked].tolist()
         name, cost, penalty = self._reward_name, self._step_cost, self._collision_penalty
         return [
             info_from_stats(row, count, 1.0, name, cost, penalty)
@@ -310,9 +311,9 @@ class MemberEngine:
             add_member_info(out, self._infos[b], int(b), self.num_envs)
         return out
 
-    def info_dicts(self, rows: list[int]) -> list[dict[str, Any]]:
-        """The last info dicts of the members in ``rows`` (copies)."""
-        return [dict(self._infos[b]) for b in rows]
+    def info_dicts(self, rows: list[int] | None = None) -> list[dict[str, Any]]:
+        """The last info dicts of the members in ``rows`` (None: all; copies)."""
+        return [dict(self._infos[b]) for b in (range(self.num_envs) if rows is None else rows)]
 
     def frame(self, b: int) -> Any:
         return self.envs[b].render()

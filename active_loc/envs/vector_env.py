@@ -127,7 +127,6 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         self._none.flags.writeable = False
         self._all = np.ones(n, dtype=np.bool_)
         self._all.flags.writeable = False
-        self._rows = list(range(n))
         self._has_reset = False
 
     # -- gymnasium API ----------------------------------------------------------------------
@@ -197,12 +196,14 @@ class ActiveLocalizationVectorEnv(VectorEnv):
             )
         engine = self.engine
         rewards, terminated, truncated, _ = self._advance(actions)
-        infos = engine.info_dicts(self._rows)
+        infos = engine.info_dicts()
+        reset_infos: dict[int, dict[str, Any]] = {}
         ended = np.flatnonzero(terminated | truncated).tolist()
-        for b in ended:
-            infos[b]["terminal_observation"] = engine.obs[b].copy()
-            self._reset_ended(b)
-        reset_infos = dict(zip(ended, engine.info_dicts(ended), strict=True))
+        if ended:
+            for b in ended:
+                infos[b]["terminal_observation"] = engine.obs[b].copy()
+                self._reset_ended(b)
+            reset_infos = dict(zip(ended, engine.info_dicts(ended), strict=True))
         return engine.obs.copy(), rewards, terminated, truncated, infos, reset_infos
 
     def render(self) -> NDArray[np.uint8] | None:

@@ -575,8 +575,8 @@ def resolve_vec_env(
 ) -> str:
     """``"auto"`` resolved: ``"native"`` for the ids whose vector env steps the batch in one
     kernel call, with at least :data:`NATIVE_MIN_ENVS` envs, else ``"dummy"``. Through SB3's
-    API the native env took 15.6% of PPO's wall time at 8 envs against 24.2% for
-    ``DummyVecEnv``, and 10.0% against 33.3% at 256 (docs/performance.md)."""
+    API the native env took 14.7% of PPO's wall time at 8 envs against 24.1% for
+    ``DummyVecEnv``, and 9.4% against 33.8% at 256 (docs/performance.md)."""
     if vec_env != "auto":
         return vec_env
     if not env_id.startswith("ActiveLoc/") or n_envs < NATIVE_MIN_ENVS:

@@ -102,7 +102,7 @@ class BatchedLandmarkEngine:
     ) -> None:
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
-        # a thread per share of the batch pays off only when the shares are large enough
+        # more threads pay off only when each gets enough members to outweigh starting them
         self.workers = min(
             int(workers), max(1, num_envs // MIN_ROWS_PER_WORKER), numba.config.NUMBA_NUM_THREADS
         )

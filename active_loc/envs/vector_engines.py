@@ -1,7 +1,7 @@
 """What steps the members of :class:`~active_loc.envs.vector_env.ActiveLocalizationVectorEnv`.
 
-Two engines with one interface (``obs``, ``reset_member``, ``step``, ``infos``,
-``info_dicts``, ``frame``, ``workers``):
+Two engines with one interface (``obs``, ``reset_member``, ``reset_members``, ``step``,
+``infos``, ``info_dicts``, ``frame``, ``workers``):
 
 * :class:`BatchedLandmarkEngine`: the EKF landmark ids. One :class:`LandmarkCore` with
   B = n members advances the whole batch in one numba kernel call (spread over numba's
@@ -9,9 +9,10 @@ Two engines with one interface (``obs``, ``reset_member``, ``step``, ``infos``,
   no Python loop over members on a step's path.
 * :class:`MemberEngine`: every other id (MCL, grid Markov, unknown correspondences, the maze).
   Their cores hold one episode each, so the engine keeps n unwrapped single envs and steps
-  them on worker threads, each its own share (the particle and grid kernels release the
-  GIL, so two cores run two sub-envs' filters at once). It also skips gymnasium's wrapper
-  stack and ``SyncVectorEnv``'s per-step copies.
+  and autoresets them on worker threads, each thread taking the next member left, slowest
+  first (the particle and grid kernels release the GIL, so two cores run two sub-envs'
+  filters at once). It also skips gymnasium's wrapper stack and ``SyncVectorEnv``'s
+  per-step copies.
 
 Either way member ``b`` draws only from its own Generator, in the same order as a single env
 seeded the same, so the vector env reproduces n single envs exactly.
@@ -19,6 +20,8 @@ seeded the same, so the vector env reproduces n single envs exactly.
 
 from __future__ import annotations
 
+import time
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -76,6 +79,18 @@ class WorkerThreads:
             self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="active_loc")
         for future in [self._pool.submit(fn, share) for share in shares]:
             future.result()
+
+    def run_tasks(self, fn: Any, tasks: list[Any]) -> None:
+        """``fn(task)`` for every task, the threads each taking the next one left in the list
+        as they finish one (put the longest first: the threads then end together); re-raises
+        the first error after all have finished."""
+        queue = iter(tasks)  # next() on a list iterator is atomic under the GIL
+
+        def drain(_: int) -> None:
+            for task in queue:
+                fn(task)
+
+        self.run(drain, list(range(min(self.workers, len(tasks)))))
 
     def close(self) -> None:
         if self._pool is not None:
@@ -144,11 +159,17 @@ class BatchedLandmarkEngine:
             self._paths[b] = ([self.core.pose[b, :2].copy()],
                               [self.core.state[b, X_MEAN : X_MEAN + 2].copy()])
 
+    def reset_members(self, rows: Sequence[int]) -> None:
+        """Autoreset the members in ``rows`` (their Generators go on)."""
+        for b in rows:
+            self.reset_member(b, None, None)
+
     def step(
-        self, actions: Any, active: NDArray[np.bool_]
+        self, actions: Any, active: NDArray[np.bool_], autoreset: Sequence[int] = ()
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_]]:
-        """Advance the active members; ``(rewards, terminated, truncated)`` of all n (zero and
-        False for the inactive ones, which the caller resets)."""
+        """Advance the active members, then autoreset those in ``autoreset`` (inactive ones);
+        ``(rewards, terminated, truncated)`` of all n (zero and False for the inactive
+        members)."""
         core = self.core
         self._write_actions(actions, active)
         rngs: list[np.random.Generator] = self.rngs  # type: ignore[assignment]
@@ -164,6 +185,7 @@ class BatchedLandmarkEngine:
             if active[b]:
                 self._paths[b][0].append(core.pose[b, :2].copy())
                 self._paths[b][1].append(core.state[b, X_MEAN : X_MEAN + 2].copy())
+        self.reset_members(autoreset)
         return rewards, terminated, np.zeros(n, dtype=np.bool_)
 
     def infos(self, mask: NDArray[np.bool_]) -> BatchInfo:
@@ -247,10 +269,11 @@ class MemberEngine:
 
     Args:
         envs: the n members (unwrapped; the first ones built with a render mode render).
-        workers: threads that step the members, each its own share of them. The filters'
-            numba kernels release the GIL, so on a multi-core machine the members' particle
-            updates run side by side; 1 steps them in this thread. Every member uses only its
-            own arrays and Generator, so the results do not depend on ``workers``.
+        workers: threads that step and autoreset the members, each taking the next member
+            left as it finishes one. The filters' numba kernels release the GIL, so on a
+            multi-core machine the members' particle updates run side by side; 1 steps them
+            in this thread. Every member uses only its own arrays and Generator, so the
+            results do not depend on ``workers`` or on which thread took which member.
     """
 
     def __init__(self, envs: list[gym.Env], workers: int = 1) -> None:
@@ -266,6 +289,7 @@ class MemberEngine:
             dtype=self.single_observation_space.dtype,
         )
         self._infos: list[dict[str, Any]] = [{} for _ in envs]
+        self._seconds = np.zeros(self.num_envs)  # how long each member's last step or reset took
 
     @property
     def workers(self) -> int:
@@ -275,28 +299,51 @@ class MemberEngine:
     def reset_member(self, b: int, seed: int | None, options: dict[str, Any] | None) -> None:
         self.obs[b], self._infos[b] = self.envs[b].reset(seed=seed, options=options)
 
+    def reset_members(self, rows: Sequence[int]) -> None:
+        """Autoreset the members in ``rows`` (their Generators go on), on the threads."""
+        self._run([(b, None) for b in rows])
+
     def step(
-        self, actions: Any, active: NDArray[np.bool_]
+        self, actions: Any, active: NDArray[np.bool_], autoreset: Sequence[int] = ()
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_]]:
+        """Step the active members and autoreset those in ``autoreset`` (inactive ones), all
+        on the threads; ``(rewards, terminated, truncated)`` of all n (zero and False for the
+        inactive members)."""
         n = self.num_envs
         if len(actions) != n:
             raise ValueError(f"expected {n} actions (one per sub-env), got {len(actions)}")
+        tasks = [(int(b), actions[b]) for b in np.flatnonzero(active)]
+        return self._run(tasks + [(b, None) for b in autoreset])
+
+    def _run(
+        self, tasks: list[tuple[int, Any]]
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_]]:
+        """Run ``(b, action)`` tasks, a step of member ``b`` or, when the action is None, its
+        autoreset; ``(rewards, terminated, truncated)`` of all n (zero and False for the
+        members not stepped). The threads take first the members whose last step or reset
+        took longest, so that a few 100000-particle steps do not all land on one thread."""
+        n = self.num_envs
         rewards = np.zeros(n)
         terminated = np.zeros(n, dtype=np.bool_)
         truncated = np.zeros(n, dtype=np.bool_)
 
-        def run(members: NDArray[np.intp]) -> None:
-            for b in members:
-                obs, reward, term, trunc, self._infos[b] = self.envs[b].step(actions[b])
+        def run(task: tuple[int, Any]) -> None:
+            b, action = task
+            start = time.perf_counter()
+            if action is None:
+                self.obs[b], self._infos[b] = self.envs[b].reset()
+            else:
+                obs, reward, term, trunc, self._infos[b] = self.envs[b].step(action)
                 self.obs[b] = obs
                 rewards[b], terminated[b], truncated[b] = reward, term, trunc
+            self._seconds[b] = time.perf_counter() - start
 
-        members = np.flatnonzero(active)
-        workers = self.threads.workers
-        if workers == 1 or len(members) < 2:
-            run(members)
+        if self.threads.workers == 1 or len(tasks) < 2:
+            for task in tasks:
+                run(task)
         else:
-            self.threads.run(run, [members[k::workers] for k in range(workers)])
+            tasks.sort(key=lambda task: -self._seconds[task[0]])
+            self.threads.run_tasks(run, tasks)
         return rewards, terminated, truncated
 
     def close(self) -> None:

@@ -159,21 +159,18 @@ class ActiveLocalizationVectorEnv(VectorEnv):
     ) -> tuple[NDArray, NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], BatchInfo]:
         engine = self.engine
         n = self.num_envs
-        rewards, terminated, truncated, resetting = self._advance(actions)
+        rewards, terminated, truncated = self._advance(actions)
         ended = terminated | truncated
         if self.autoreset_mode == AutoresetMode.SAME_STEP and ended.any():
             final_obs = np.full(n, None, dtype=object)
             for b in np.flatnonzero(ended):
                 final_obs[b] = engine.obs[b].copy()
             final_info = engine.infos(ended)
-            for b in np.flatnonzero(ended).tolist():
-                self._reset_ended(b)
+            self._reset_ended(np.flatnonzero(ended).tolist())
             infos = engine.infos(self._all)
             infos.update(final_obs=final_obs, _final_obs=ended.copy(),
                          final_info=final_info, _final_info=ended.copy())
         else:
-            for b in np.flatnonzero(resetting).tolist():
-                self._reset_ended(b)
             infos = engine.infos(self._all)
         return engine.obs.copy(), rewards, terminated, truncated, infos
 
@@ -195,14 +192,14 @@ class ActiveLocalizationVectorEnv(VectorEnv):
                 f"step_with_info_dicts needs autoreset_mode=SAME_STEP, got {self.autoreset_mode}"
             )
         engine = self.engine
-        rewards, terminated, truncated, _ = self._advance(actions)
+        rewards, terminated, truncated = self._advance(actions)
         infos = engine.info_dicts()
         reset_infos: dict[int, dict[str, Any]] = {}
         ended = np.flatnonzero(terminated | truncated).tolist()
         if ended:
             for b in ended:
                 infos[b]["terminal_observation"] = engine.obs[b].copy()
-                self._reset_ended(b)
+            self._reset_ended(ended)
             reset_infos = dict(zip(ended, engine.info_dicts(ended), strict=True))
         return engine.obs.copy(), rewards, terminated, truncated, infos, reset_infos
 
@@ -226,10 +223,11 @@ class ActiveLocalizationVectorEnv(VectorEnv):
 
     def _advance(
         self, actions: Any
-    ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_]]:
-        """Step the sub-envs that are not waiting for a NEXT_STEP reset; ``(rewards,
-        terminated, truncated, resetting)`` with the time limit applied. Ended sub-envs are
-        left for the caller to reset (SAME_STEP) or marked for the next step."""
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_]]:
+        """Step the sub-envs that are not waiting for a NEXT_STEP reset, and reset those (in
+        the same engine call, so that the threads share both); ``(rewards, terminated,
+        truncated)`` with the time limit applied. Ended sub-envs are left for the caller to
+        reset (SAME_STEP) or marked for the next step."""
         if not self._has_reset:
             raise RuntimeError("call reset() before step()")
         mode = self.autoreset_mode
@@ -241,18 +239,21 @@ class ActiveLocalizationVectorEnv(VectorEnv):
             )
         resetting = self._needs_reset if mode == AutoresetMode.NEXT_STEP else self._none
         active = ~resetting
-        rewards, terminated, truncated = self.engine.step(actions, active)
+        rewards, terminated, truncated = self.engine.step(
+            actions, active, autoreset=np.flatnonzero(resetting).tolist()
+        )
+        self._elapsed[resetting] = 0
         self._elapsed += active
         if self.max_episode_steps is not None:
             truncated |= active & (self._elapsed >= self.max_episode_steps)
         if mode != AutoresetMode.SAME_STEP:
             self._needs_reset = terminated | truncated
-        return rewards, terminated, truncated, resetting
+        return rewards, terminated, truncated
 
-    def _reset_ended(self, b: int) -> None:
-        """Autoreset sub-env ``b`` (its Generator goes on)."""
-        self.engine.reset_member(b, None, None)
-        self._elapsed[b] = 0
+    def _reset_ended(self, rows: list[int]) -> None:
+        """Autoreset the sub-envs in ``rows`` (their Generators go on)."""
+        self.engine.reset_members(rows)
+        self._elapsed[rows] = 0
 
     def _member_frame(self, b: int) -> NDArray[np.uint8]:
         engine = self.engine

@@ -220,12 +220,16 @@ def test_bad_input_is_named() -> None:
     ("ActiveLoc/GridMCL-v0", 4, {"n_particles": 2000}),
     ("ActiveLoc/LandmarkEKF-v0", 130, {}),  # two shares of 65 rows
 ])
-def test_threads_do_not_change_the_results(env_id: str, n: int, kwargs: dict) -> None:
-    """Worker threads step disjoint members: the same results as one thread."""
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_threads_do_not_change_the_results(
+    env_id: str, n: int, kwargs: dict, mode: AutoresetMode
+) -> None:
+    """Worker threads step and autoreset disjoint members, in whatever order they take them:
+    the same results as one thread."""
     runs = []
     for workers in (1, 2):
-        envs = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point",
-                            workers=workers, max_episode_steps=6, **kwargs)
+        envs = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point", workers=workers,
+                            max_episode_steps=6, autoreset_mode=mode, **kwargs)
         assert envs.engine.workers == workers
         obs, _ = envs.reset(seed=3)
         rng = np.random.default_rng(3)

@@ -563,7 +563,7 @@ class LandmarkCore(StateViews):
 
     def refill_noise(self, b: int, rng: np.random.Generator) -> None:
         """Draw a fresh noise buffer of member ``b`` from its Generator."""
-        self.noise[b] = rng.standard_normal(self.noise.shape[1])
+        rng.standard_normal(out=self.noise[b])  # the same draws as standard_normal(L)
         self.state[b, X_NOISE_CURSOR] = 0
         self.noise_source[b] = rng
 

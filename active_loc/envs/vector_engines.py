@@ -107,7 +107,7 @@ class BatchedLandmarkEngine:
     Args:
         template: a single env of the id (its config, spaces and reward settings are used).
         num_envs: n.
-        render_envs: how many leading members keep the paths the renderer draws.
+        render_envs: how many leading members keep the paths the renderer draws (0: none).
         workers: numba threads the kernel spreads the members over; used when each gets at
             least :data:`MIN_ROWS_PER_WORKER` members (and at most the cores numba has).
     """
@@ -175,7 +175,11 @@ class BatchedLandmarkEngine:
         rngs: list[np.random.Generator] = self.rngs  # type: ignore[assignment]
         if self.workers > 1:
             numba.set_num_threads(self.workers)  # per calling thread: set before each call
-        core.step(rngs, active, parallel=self.workers > 1)
+        bad = core.step(rngs, active, parallel=self.workers > 1)
+        if bad >= 0:  # the kernel checks every action before it moves any member
+            raise ValueError(
+                f"the action of sub-env {bad} contains NaN or inf: {np.asarray(actions)[bad]!r}"
+            )
         n = self.num_envs
         rewards = np.empty(n)
         terminated = np.empty(n, dtype=np.bool_)
@@ -245,11 +249,7 @@ class BatchedLandmarkEngine:
                     f"actions must be real numbers of shape ({n}, 2) for "
                     f"action_type='continuous', got {actions.dtype} {actions.shape}"
                 )
-            finite = np.isfinite(actions).all(axis=1) | ~active  # checked before any member moves
-            if not finite.all():
-                b = int(np.flatnonzero(~finite)[0])
-                raise ValueError(f"the action of sub-env {b} contains NaN or inf: {actions[b]!r}")
-            self.core.actions[:] = actions
+            self.core.actions[:] = actions  # NaN and inf: the kernel finds them (see step)
             return
         if actions.shape != (n,) or actions.dtype.kind not in "iu":
             raise ValueError(

@@ -108,7 +108,9 @@ class ActiveLocalizationVectorEnv(VectorEnv):
             workers = min(2, os.cpu_count() or 1)
         if batched_core(template):
             assert isinstance(template, ActiveLocalizationEnv)
-            self.engine = BatchedLandmarkEngine(template, self.num_envs, render_envs, workers)
+            # the paths a frame draws are kept only when there is something to render
+            kept_paths = render_envs if render_mode is not None else 0
+            self.engine = BatchedLandmarkEngine(template, self.num_envs, kept_paths, workers)
         else:
             members = [template] + [env_class(**env_kwargs) for _ in range(1, self.num_envs)]
             if render_mode is not None:

@@ -195,28 +195,29 @@ class BatchedLandmarkEngine:
     def infos(self, mask: NDArray[np.bool_]) -> BatchInfo:
         """The members' info arrays (the keys of a single env's info, same values), with
         ``mask`` as every ``"_key"`` (one read-only array shared by the keys): all n rows are
-        filled, whatever the mask."""
-        columns = self.core.state[:, X_STATS:].T.copy()  # (N_STATS, n): a row per metric
+        filled, whatever the mask. The arrays are rows of three fresh blocks, one per dtype,
+        filled by one kernel call."""
+        n = self.num_envs
+        reals = np.empty((8, n))
+        flags = np.empty((3, n), dtype=np.bool_)
+        counts = np.empty((2, n), dtype=np.int64)
+        info_columns(self.core.state, self.collisions, self._step_cost, self._collision_penalty,
+                     reals, flags, counts)
         mask = mask.copy()
         mask.flags.writeable = False
-        collided = columns[S_COLLIDED] > 0.5
-        terms = {
-            self._reward_name: columns[S_UNCERTAINTY_REWARD],
-            "step_cost": np.full(self.num_envs, -self._step_cost),
-            "collision": np.where(collided, -self._collision_penalty, 0.0),
-        }
-        info: BatchInfo = {
-            "pose_error": columns[S_POS_ERR],
-            "heading_error": columns[S_HEAD_ERR],
-            "entropy": columns[S_ENTROPY],
-            "localized": columns[S_LOCALIZED] > 0.5,
-            "is_success": columns[S_SUCCESS] > 0.5,
-            "collisions": self.collisions.copy(),
+        terms = {self._reward_name: reals[5], "step_cost": reals[6], "collision": reals[7]}
+        info: BatchInfo = {  # the single env's keys, in its order
+            "pose_error": reals[0],
+            "heading_error": reals[1],
+            "entropy": reals[2],
+            "localized": flags[0],
+            "is_success": flags[1],
+            "collisions": counts[0],
             "reward_terms": with_masks(terms, mask),
-            "n_visible": columns[S_N_VISIBLE].astype(np.int64),
-            "nis": columns[S_NIS],
-            "kidnapped": columns[S_KIDNAPPED] > 0.5,
-            "association_accuracy": np.ones(self.num_envs),
+            "n_visible": counts[1],
+            "nis": reals[3],
+            "kidnapped": flags[2],
+            "association_accuracy": reals[4],
         }
         return with_masks(info, mask)
 
@@ -386,6 +387,32 @@ def step_outcomes(
         terminated[b] = terminate and state[b, X_STATS + S_TERMINAL] > 0.5
         collisions[b] += collided
         steps[b] += 1
+
+
+@numba.njit(cache=True, nogil=True)
+def info_columns(
+    state: NDArray, collisions: NDArray, step_cost: float, collision_penalty: float,
+    reals: NDArray, flags: NDArray, counts: NDArray,
+) -> None:
+    """The info values of every member as :func:`info_from_stats` has them, a column per
+    member (out): ``reals`` ``(8, n)``: pose error, heading error, entropy, NIS, association
+    accuracy, then the reward terms (uncertainty, step cost, collision); ``flags`` ``(3, n)``:
+    localized, success, kidnapped; ``counts`` ``(2, n)``: collisions, landmarks in view."""
+    for b in range(state.shape[0]):
+        stats = state[b, X_STATS:]
+        reals[0, b] = stats[S_POS_ERR]
+        reals[1, b] = stats[S_HEAD_ERR]
+        reals[2, b] = stats[S_ENTROPY]
+        reals[3, b] = stats[S_NIS]
+        reals[4, b] = 1.0  # known correspondences: every association is right
+        reals[5, b] = stats[S_UNCERTAINTY_REWARD]
+        reals[6, b] = -step_cost
+        reals[7, b] = -collision_penalty if stats[S_COLLIDED] > 0.5 else 0.0
+        flags[0, b] = stats[S_LOCALIZED] > 0.5
+        flags[1, b] = stats[S_SUCCESS] > 0.5
+        flags[2, b] = stats[S_KIDNAPPED] > 0.5
+        counts[0, b] = collisions[b]
+        counts[1, b] = int(stats[S_N_VISIBLE])
 
 
 def with_masks(info: dict[str, Any], mask: NDArray[np.bool_]) -> BatchInfo:

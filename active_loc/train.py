@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import platform
 import sys
 import time
@@ -136,8 +137,9 @@ class TrainArgs:
     vec_env: Literal["auto", "dummy", "subproc", "native"] = "auto"
     """dummy: the envs in this process; subproc: one process per env; native: the package's
     own vector env (active_loc.integrations.sb3), in this process, one batched kernel call per
-    step for the EKF landmark ids (one Monitor CSV for all training envs); auto: native for
-    those ids from 8 envs on, where it is faster, dummy otherwise."""
+    step for the EKF landmark ids, worker threads for the others (one Monitor CSV for all
+    training envs); auto: native where it is faster (EKF landmark ids from 8 envs on, MCL and
+    grid ids from 2 on, given 2 cores), dummy otherwise."""
     device: str = "cpu"
     """Torch device."""
     torch_threads: int = 1
@@ -568,22 +570,36 @@ def eval_summary(out: Path) -> dict[str, Any] | None:
 
 #: from this many training envs on, "auto" picks the native vector env for the batched ids
 NATIVE_MIN_ENVS = 8
+#: beliefs whose steps take milliseconds in kernels that release the GIL: the native vector
+#: env's worker threads run two of them at once on two cores
+THREADED_BELIEFS = ("mcl", "grid")
 
 
 def resolve_vec_env(
     vec_env: str, env_id: str, env_kwargs: dict[str, Any], n_envs: int = NATIVE_MIN_ENVS
 ) -> str:
-    """``"auto"`` resolved: ``"native"`` for the ids whose vector env steps the batch in one
-    kernel call, with at least :data:`NATIVE_MIN_ENVS` envs, else ``"dummy"``. Through SB3's
-    API the native env took 14.7% of PPO's wall time at 8 envs against 24.1% for
-    ``DummyVecEnv``, and 9.4% against 33.8% at 256 (docs/performance.md)."""
+    """``"auto"`` resolved to ``"native"`` where the package's vector env is faster, else
+    ``"dummy"``:
+
+    * the ids whose vector env steps the batch in one kernel call, from
+      :data:`NATIVE_MIN_ENVS` envs on. Through SB3's API the native env took 14.7% of PPO's
+      wall time at 8 envs against 24.1% for ``DummyVecEnv``, and 9.4% against 33.8% at 256;
+    * the particle and grid filters from 2 envs on, on a machine with 2 cores or more: their
+      worker threads step two envs at once (PPO on ``LandmarkMCL-v0`` with 8 envs: about
+      1.7x the steps per second of ``DummyVecEnv``). See docs/performance.md.
+    """
     if vec_env != "auto":
         return vec_env
-    if not env_id.startswith("ActiveLoc/") or n_envs < NATIVE_MIN_ENVS:
+    if not env_id.startswith("ActiveLoc/") or n_envs < 2:
         return "dummy"
     env = make_env(env_id, **env_kwargs)
     try:
-        return "native" if batched_core(env.unwrapped) else "dummy"
+        unwrapped = env.unwrapped
+        if batched_core(unwrapped):
+            return "native" if n_envs >= NATIVE_MIN_ENVS else "dummy"
+        belief = getattr(getattr(unwrapped, "config", None), "belief", None)
+        threaded = belief in THREADED_BELIEFS and (os.cpu_count() or 1) >= 2
+        return "native" if threaded else "dummy"
     finally:
         env.close()
 

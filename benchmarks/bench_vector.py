@@ -4,7 +4,8 @@
   n = 1, 16, 256 and 1024, in env-steps per second (n per call), as a ratio to a single
   CartPole-v1 env's steps per second measured in the same run.
 * Each MCL id at n = 16: the native vector env against gymnasium's ``SyncVectorEnv`` of the
-  same id, both with NEXT_STEP autoreset.
+  same id, both with NEXT_STEP autoreset, over the same episodes (seeds, actions and number
+  of calls).
 
 Both with one worker thread and with two (the kernels release the GIL; the batched EKF splits
 the batch only for n >= 128), to show what the second core adds.
@@ -49,18 +50,22 @@ def batch_actions(space: gym.Space, calls: int, seed: int = 0) -> list[Any]:
     return list(rng.uniform(space.low, space.high, (calls, *space.shape)).astype(space.dtype))
 
 
-def vector_rate(envs: gym.vector.VectorEnv, repeats: int, budget_s: float) -> float:
-    """Best-of-``repeats`` env-steps per second (``num_envs`` per call) of a vector env.
-    Each timing runs as many calls as fit in ``budget_s`` (from a short probe)."""
+def vector_rate(
+    envs: gym.vector.VectorEnv, repeats: int, budget_s: float, calls: int | None = None
+) -> tuple[float, int]:
+    """Best-of-``repeats`` env-steps per second (``num_envs`` per call) of a vector env, and
+    the number of calls each timing made: ``calls``, or as many as fit in ``budget_s`` (from
+    a short probe)."""
     envs.reset(seed=0)
     probe = batch_actions(envs.action_space, 20)
     for actions in probe:  # warm-up: numba compilation, caches
         envs.step(actions)
-    start = time.perf_counter()
-    for actions in probe:
-        envs.step(actions)
-    per_call = (time.perf_counter() - start) / len(probe)
-    calls = max(20, int(budget_s / per_call))
+    if calls is None:
+        start = time.perf_counter()
+        for actions in probe:
+            envs.step(actions)
+        per_call = (time.perf_counter() - start) / len(probe)
+        calls = max(20, int(budget_s / per_call))
     actions = batch_actions(envs.action_space, calls, seed=1)
     best = float("inf")
     for _ in range(repeats):
@@ -70,7 +75,7 @@ def vector_rate(envs: gym.vector.VectorEnv, repeats: int, budget_s: float) -> fl
             envs.step(batch)
         best = min(best, time.perf_counter() - start)
     envs.close()
-    return calls * envs.num_envs / best
+    return calls * envs.num_envs / best, calls
 
 
 def main() -> None:
@@ -108,7 +113,7 @@ def ekf_rates(baseline: float, repeats: int, budget: float) -> dict[str, float]:
         for workers in (1, 2):
             envs = gym.make_vec(EKF_ID, n, vectorization_mode="vector_entry_point",
                                 workers=workers)
-            rate = vector_rate(envs, repeats, budget)
+            rate, _ = vector_rate(envs, repeats, budget)
             results[f"{EKF_ID} native n={n} workers={workers}"] = rate
             cells.append(f"{rate:>9.0f} ({rate / baseline:>5.2f})")
         print(f"{n:>6} {cells[0]:>18} {cells[1]:>18}")
@@ -121,12 +126,15 @@ def mcl_rates(repeats: int, budget: float) -> dict[str, dict[str, float]]:
     print(f"\nMCL ids at n = {MCL_N}, env-steps/s: native against SyncVectorEnv")
     print(f"{'env':<32} {'sync':>7} {'native 1':>9} {'native 2':>9} {'2 / sync':>9}")
     for env_id in MCL_IDS:
-        rates = {"sync": vector_rate(
-            gym.make_vec(env_id, MCL_N, vectorization_mode="sync"), repeats, budget)}
+        # the same episodes and calls for all three: a particle step costs 100 times more at
+        # an episode's start (100000 particles) than once KLD sampling has shrunk the set
+        sync = gym.make_vec(env_id, MCL_N, vectorization_mode="sync")
+        rates = {}
+        rates["sync"], calls = vector_rate(sync, repeats, budget)
         for workers in (1, 2):
             envs = gym.make_vec(env_id, MCL_N, vectorization_mode="vector_entry_point",
                                 workers=workers)
-            rates[f"native {workers}"] = vector_rate(envs, repeats, budget)
+            rates[f"native {workers}"], _ = vector_rate(envs, repeats, budget, calls)
         results[f"{env_id} n={MCL_N}"] = rates
         print(f"{env_id:<32} {rates['sync']:>7.0f} {rates['native 1']:>9.0f} "
               f"{rates['native 2']:>9.0f} {rates['native 2'] / rates['sync']:>9.2f}")

@@ -4,6 +4,7 @@ errors, and ``SB3Agent`` on saved models."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -233,14 +234,19 @@ def test_pooled_belief_cnn_takes_any_maze_size_and_the_belief_up_to_scale() -> N
         PooledBeliefCNN(gym.spaces.Box(0.0, 1.0, (5, 7, 7)), belief_channels=6)
 
 
-def test_auto_vec_env_is_native_where_the_batch_is_one_kernel_call() -> None:
+def test_auto_vec_env_is_native_where_it_is_faster() -> None:
     from active_loc.train import resolve_vec_env
 
     assert resolve_vec_env("auto", "ActiveLoc/LandmarkEKF-v0", {}, 64) == "native"
     assert resolve_vec_env("auto", "ActiveLoc/LandmarkEKF-v0", {}, 8) == "native"
     assert resolve_vec_env("auto", "ActiveLoc/LandmarkEKF-v0", {}, 4) == "dummy"
     assert resolve_vec_env("auto", "ActiveLoc/Textbook-v0", {"action_type": "discrete"}) == "native"
-    assert resolve_vec_env("auto", "ActiveLoc/GridMCL-v0", {}) == "dummy"
+    threads = "native" if (os.cpu_count() or 1) >= 2 else "dummy"  # MCL and grid: 2 cores
+    assert resolve_vec_env("auto", "ActiveLoc/GridMCL-v0", {}) == threads
+    assert resolve_vec_env("auto", "ActiveLoc/LandmarkMCL-v0", {}, 2) == threads
+    assert resolve_vec_env("auto", "ActiveLoc/GridMarkov-v0", {}, 4) == threads
+    assert resolve_vec_env("auto", "ActiveLoc/GridMCL-v0", {}, 1) == "dummy"
+    assert resolve_vec_env("auto", "ActiveLoc/LandmarkEKFUnknown-v0", {}) == "dummy"
     assert resolve_vec_env("auto", "ActiveLoc/Maze-v0", {"size": 7}) == "dummy"
     assert resolve_vec_env("auto", "CartPole-v1", {}) == "dummy"
     assert resolve_vec_env("subproc", "ActiveLoc/LandmarkEKF-v0", {}) == "subproc"

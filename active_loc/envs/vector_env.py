@@ -239,12 +239,14 @@ class ActiveLocalizationVectorEnv(VectorEnv):
                 f"sub-envs {ended} have ended and autoreset is disabled: reset them with "
                 "reset(options={'reset_mask': mask}) before stepping"
             )
-        resetting = self._needs_reset if mode == AutoresetMode.NEXT_STEP else self._none
+        resetting = self._none
+        autoreset: list[int] = []
+        if mode == AutoresetMode.NEXT_STEP and self._needs_reset.any():
+            resetting = self._needs_reset
+            autoreset = np.flatnonzero(resetting).tolist()
+            self._elapsed[resetting] = 0
         active = ~resetting
-        rewards, terminated, truncated = self.engine.step(
-            actions, active, autoreset=np.flatnonzero(resetting).tolist()
-        )
-        self._elapsed[resetting] = 0
+        rewards, terminated, truncated = self.engine.step(actions, active, autoreset)
         self._elapsed += active
         if self.max_episode_steps is not None:
             truncated |= active & (self._elapsed >= self.max_episode_steps)

@@ -32,7 +32,9 @@ Randomness: every draw comes from the ``numpy.random.Generator`` passed in, draw
 Python and handed to the kernels, with a fixed number of draws per call (``3 K_max`` normals per
 predict, ``K_max + 1`` uniforms per update, plus ``5 K_max`` with augmentation), so that runs
 are reproducible and planners can use common random numbers. Only a re-initialization draws
-extra (``4 K_max`` uniforms).
+extra (``4 K_max`` uniforms). An update that does not resample skips its uniforms
+(:func:`skip_uniforms`: the stream moves on as if they were drawn), and the draws go into
+arrays the belief reuses, not megabytes allocated per step.
 
 The map enters as a :class:`FreeSpace`: an occupancy grid in plain arrays (``values (ny, nx)``
 int8, FREE = 0, OCCUPIED = 100, UNKNOWN = -1, row 0 at the bottom, origin the world pose of the
@@ -703,6 +705,26 @@ def landmark_log_likelihood(
 # --- the belief ----------------------------------------------------------------------------------
 
 
+def skip_uniforms(rng: np.random.Generator, count: int) -> None:
+    """Move ``rng`` on exactly as ``rng.random(count)`` would, without making the numbers.
+
+    Each float64 uniform is one 64-bit output of the bit generator, so PCG64 (gymnasium's and
+    ``default_rng``'s) and PCG64DXSM just advance by ``count``, keeping the buffered half of
+    a 32-bit draw that ``random`` leaves alone and ``advance`` would drop. Other bit
+    generators draw the numbers.
+    """
+    bit_generator = rng.bit_generator
+    if not isinstance(bit_generator, (np.random.PCG64, np.random.PCG64DXSM)):
+        rng.random(count)
+        return
+    before = bit_generator.state
+    bit_generator.advance(count)
+    if before["has_uint32"]:
+        after = bit_generator.state
+        after["has_uint32"], after["uinteger"] = before["has_uint32"], before["uinteger"]
+        bit_generator.state = after
+
+
 def _log_add(a: float, b: float) -> float:
     """``log(exp(a) + exp(b))`` for floats, ``-inf`` allowed."""
     if a == -math.inf:
@@ -835,6 +857,8 @@ class MCLBelief:
         self._log_w_slow: float | None = None
         self._log_w_fast: float | None = None
         self._initialized = False
+        #: reusable arrays for the K_max-sized draws of a step (see :meth:`_buffer`)
+        self._buffers: dict[str, NDArray[np.float64]] = {}
         self.reinitialized = False
         self.n_reinitializations = 0
         self.blocked = False
@@ -1003,7 +1027,7 @@ class MCLBelief:
             raise ValueError(f"MCLBelief.predict: control must be 2 finite numbers (V m/s, "
                              f"omega rad/s), got {control}")
         self.reinitialized = False
-        normals = rng.standard_normal((1, self.n_particles, 3))
+        normals = rng.standard_normal(out=self._buffer("normals", (1, self.n_particles, 3)))
         n = self.n_active
         before = self._particles[0, :n].copy()
         before_log_w = self._log_weights[0, :n].copy()
@@ -1042,13 +1066,13 @@ class MCLBelief:
             raise ValueError("MCLBelief.update: log_likelihood contains NaN or +inf")
         if self.likelihood_exponent != 1.0:
             ll = ll * self.likelihood_exponent  # a tempered likelihood p(z | x)^exponent
-        u_sel, u_inj = self._draw_resampling(rng)
         self.resampled = False
         self.last_injected = 0
         self.last_injection_rate = 0.0
         log_ev = add_log_likelihood(self._log_weights[0, :n], ll)
         self.last_log_evidence = log_ev
         if log_ev == -math.inf:
+            self._skip_resampling_draws(rng)
             self._reinitialize(rng)
             return
         # w_slow += alpha_slow (w_avg - w_slow), and w_fast likewise, in log space
@@ -1060,8 +1084,11 @@ class MCLBelief:
             fast = math.log1p(-self.alpha_fast) if self.alpha_fast < 1.0 else -math.inf
             self._log_w_fast = _log_add(fast + self._log_w_fast,
                                         math.log(self.alpha_fast) + log_ev)
+        # the resampling uniforms come next in the stream whether or not they are used
         if effective_sample_size(self._log_weights[0, :n]) < self.resample_threshold * n:
-            self._resample(u_sel, u_inj)
+            self._resample(*self._draw_resampling(rng))
+        else:
+            self._skip_resampling_draws(rng)
 
     def update_landmarks(
         self,
@@ -1080,7 +1107,7 @@ class MCLBelief:
         vis = np.asarray(visible, dtype=np.bool_).reshape(-1)
         if not vis.any():
             self._check_initialized()
-            self._draw_resampling(rng)
+            self._skip_resampling_draws(rng)
             self.resampled = False
             self.last_injected = 0
             self.last_injection_rate = 0.0
@@ -1090,9 +1117,24 @@ class MCLBelief:
         self.update(ll, rng)
 
     def _draw_resampling(self, rng: np.random.Generator) -> tuple[NDArray, NDArray]:
-        u_sel = rng.random(self.n_particles + 1)
-        u_inj = rng.random((self.n_particles, 5)) if self.augmented else np.empty((0, 5))
+        """The uniforms of a resampling: ``K_max + 1`` to select, ``(K_max, 5)`` to inject
+        (none without augmentation)."""
+        u_sel = rng.random(out=self._buffer("u_sel", (self.n_particles + 1,)))
+        u_inj = (rng.random(out=self._buffer("u_inj", (self.n_particles, 5))) if self.augmented
+                 else np.empty((0, 5)))
         return u_sel, u_inj
+
+    def _skip_resampling_draws(self, rng: np.random.Generator) -> None:
+        """Move ``rng`` on past the uniforms of :meth:`_draw_resampling` without making them."""
+        skip_uniforms(rng, self.n_particles + 1 + (5 * self.n_particles if self.augmented else 0))
+
+    def _buffer(self, name: str, shape: tuple[int, ...]) -> NDArray[np.float64]:
+        """This belief's reusable float64 array ``name``: a step's K_max-sized draws go into
+        the same memory every time instead of megabytes allocated and freed per call."""
+        buffer = self._buffers.get(name)
+        if buffer is None:
+            buffer = self._buffers[name] = np.empty(shape)
+        return buffer
 
     def resample(self, rng: np.random.Generator) -> None:
         """Resample now, whatever the ESS (with injection and KLD when on); draws as
@@ -1106,7 +1148,7 @@ class MCLBelief:
         lw = self._log_weights[0, :n]
         fs = self.free_space
         p_inj = self.injection_rate
-        out = np.empty((self.n_particles, 3))
+        out = self._buffer("resampled", (self.n_particles, 3))
         if self.kld:
             new_n, n_inj = kld_resample(
                 src, lw, u_sel, p_inj, u_inj, fs.values, fs.geom, fs.is_grid, fs.free_cells,
@@ -1159,9 +1201,15 @@ class MCLBelief:
         """ESS ``1 / sum w^2`` of the active particles."""
         return float(effective_sample_size(self._log_weights[0, : self._counts[0]]))
 
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["_buffers"] = {}  # scratch: not worth pickling
+        return state
+
     def copy(self) -> MCLBelief:
         """A deep copy (the free space and motion model are immutable and shared)."""
         out = _copy.copy(self)
+        out._buffers = {}  # its own, so that a copy and its original never share scratch
         out._particles = self._particles.copy()
         out._log_weights = self._log_weights.copy()
         out._counts = self._counts.copy()

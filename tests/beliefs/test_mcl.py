@@ -29,6 +29,7 @@ from active_loc.beliefs.mcl import (
     landmark_log_likelihood,
     mask_free_space,
     sample_motion,
+    skip_uniforms,
     stratified_resample,
     systematic_resample,
 )
@@ -222,18 +223,54 @@ def test_belief_runs_reproducible(kld):
     assert runs[0][2] == runs[1][2]
 
 
-def test_fixed_number_of_draws_per_call():
-    """predict draws 3 K_max normals, update K_max + 1 uniforms, whatever the state."""
+@pytest.mark.parametrize("bit_generator", [np.random.PCG64, np.random.MT19937])
+@pytest.mark.parametrize("augmented", [False, True])
+def test_fixed_number_of_draws_per_call(bit_generator, augmented):
+    """predict draws 3 K_max normals, update K_max + 1 uniforms (plus 5 K_max with
+    augmentation), whatever the state: an update that does not resample skips them, one that
+    does draws them, and the stream ends up in the same place."""
     model = UnicycleModel(0.1, 0.01 * np.eye(3))
-    b = MCLBelief(BOX10, model, 300)
+    b = MCLBelief(BOX10, model, 300, augmented=augmented)
     b.initialize_gaussian([5.0, 5.0, 0.0], 0.1 * np.eye(3), np.random.default_rng(0))
-    rng = np.random.default_rng(9)
-    ref = np.random.default_rng(9)
+    rng = np.random.Generator(bit_generator(9))
+    ref = np.random.Generator(bit_generator(9))
+    uniforms = 301 + (1500 if augmented else 0)
     b.predict([1.0, 0.0], rng)
     ref.standard_normal((1, 300, 3))
-    b.update(np.zeros(300), rng)  # no resampling needed, but the draws happen
-    ref.random(301)
+    b.update(np.zeros(300), rng)  # no resampling needed, but the stream moves on
+    assert not b.resampled
+    ref.random(uniforms)
     assert rng.random() == ref.random()
+    b.update(np.where(np.arange(300) < 30, 0.0, -50.0), rng)  # ESS 30 of 300: resamples
+    assert b.resampled
+    ref.random(uniforms)
+    assert rng.random() == ref.random()
+
+
+@pytest.mark.parametrize("bit_generator", [np.random.PCG64, np.random.PCG64DXSM,
+                                           np.random.MT19937, np.random.Philox])
+@pytest.mark.parametrize("before", ["nothing", "int32", "float32", "small int"])
+def test_skip_uniforms_moves_the_stream_as_drawing_them(bit_generator, before):
+    """skip_uniforms(rng, n) leaves rng where rng.random(n) would, a buffered half of a
+    32-bit draw included (every later kind of draw then agrees)."""
+
+    def draws_after(rng: np.random.Generator) -> list:
+        return [rng.integers(0, 10, 5).tolist(), rng.random(3).tolist(),
+                rng.standard_normal(4).tolist(), rng.integers(0, 2**40, 3).tolist(),
+                rng.random(2, dtype=np.float32).tolist(), int(rng.integers(8, 16))]
+
+    for count in (1, 2, 301, 100_001):
+        drawn, skipped = (np.random.Generator(bit_generator(count)) for _ in range(2))
+        for rng in (drawn, skipped):
+            if before == "int32":
+                rng.integers(0, 7, 3, dtype=np.int32)
+            elif before == "float32":
+                rng.random(3, dtype=np.float32)
+            elif before == "small int":
+                rng.integers(8, 16)
+        drawn.random(count)
+        skip_uniforms(skipped, count)
+        assert draws_after(drawn) == draws_after(skipped)
 
 
 # --- motion and the map --------------------------------------------------------------------------

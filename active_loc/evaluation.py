@@ -242,7 +242,7 @@ def belief_moments(
     from active_loc.beliefs.mcl import MCLBelief
 
     if isinstance(belief, MCLBelief):
-        return "mcl", belief.mean(), belief.covariance()
+        return "mcl", *belief.mean_and_covariance()
     if isinstance(belief, GridBelief):
         return "grid", None, None
     mean, cov = getattr(belief, "mean", None), getattr(belief, "cov", None)

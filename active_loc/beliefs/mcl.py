@@ -1184,11 +1184,16 @@ class MCLBelief:
 
     def covariance(self) -> NDArray[np.float64]:
         """Weighted covariance ``(3, 3)``, heading residuals wrapped about the circular mean."""
+        return self.mean_and_covariance()[1]
+
+    def mean_and_covariance(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """:meth:`mean` and :meth:`covariance` together, with one pass over the particles
+        for the mean instead of two."""
         n = self._counts[0]
         mean = self.mean()
         out = np.empty((3, 3))
         weighted_covariance(self._particles[0, :n], self._log_weights[0, :n], mean, out)
-        return out
+        return mean, out
 
     def entropy(self) -> float:
         """Histogram entropy on the ``entropy_bins`` pose grid plus log(cell volume) (nats)."""

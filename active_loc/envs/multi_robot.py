@@ -528,8 +528,9 @@ class MultiRobotLocalizationEnv(ParallelEnv):
             self._entropy = gaussian_entropy(self._covs)
         else:
             beliefs = self.particle_beliefs
-            self._means = np.array([b.mean() for b in beliefs])
-            self._covs = np.array([b.covariance() for b in beliefs])
+            summaries = [b.mean_and_covariance() for b in beliefs]
+            self._means = np.array([mean for mean, _ in summaries])
+            self._covs = np.array([cov for _, cov in summaries])
             self._entropy = np.array([b.entropy() for b in beliefs])
         pos_std = np.sqrt(np.maximum(np.linalg.eigvalsh(self._covs[:, :2, :2])[:, -1], 0.0))
         head_std = np.sqrt(np.maximum(self._covs[:, 2, 2], 0.0))

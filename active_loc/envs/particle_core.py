@@ -437,11 +437,11 @@ class ParticleCore(StateViews):
         """The belief's mean ``(3,)``, covariance ``(3, 3)``, entropy (nats) and log det."""
         belief = self.belief
         assert belief is not None
-        cov = belief.covariance()
+        mean, cov = belief.mean_and_covariance()
         # a particle set stands for a density at the resolution of the entropy bins, so its log
         # det adds a bin's own variance (d^2 / 12): finite even when every particle coincides
         sign, logdet = np.linalg.slogdet(cov + self._bin_variance)
-        return belief.mean(), cov, belief.entropy(), float(logdet) if sign > 0 else -np.inf
+        return mean, cov, belief.entropy(), float(logdet) if sign > 0 else -np.inf
 
     def _write_observation(self, mean: NDArray, cov: NDArray, entropy: float) -> None:
         out = self.obs[0]

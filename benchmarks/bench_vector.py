@@ -2,13 +2,13 @@
 
 * ``LandmarkEKF-v0`` through ``make_vec(..., vectorization_mode="vector_entry_point")`` at
   n = 1, 16, 256 and 1024, in env-steps per second (n per call), as a ratio to a single
-  CartPole-v1 env's steps per second measured in the same run.
+  CartPole-v1 env's steps per second timed just before each size.
 * Each MCL id at n = 16: the native vector env against gymnasium's ``SyncVectorEnv`` of the
   same id, both with NEXT_STEP autoreset, over the same episodes (seeds, actions and number
-  of calls).
+  of calls), the three variants timed in turn within each repeat.
 
 Both with one worker thread and with two (the kernels release the GIL; the batched EKF splits
-the batch only for n >= 128), to show what the second core adds.
+the batch from n = 128 on), to show what the second core adds.
 
 Actions are drawn up front from a seeded Generator, autoreset is part of the timed loop, and
 each figure is the best of ``--repeats`` timings. It measures; it asserts nothing.
@@ -50,32 +50,39 @@ def batch_actions(space: gym.Space, calls: int, seed: int = 0) -> list[Any]:
     return list(rng.uniform(space.low, space.high, (calls, *space.shape)).astype(space.dtype))
 
 
-def vector_rate(
-    envs: gym.vector.VectorEnv, repeats: int, budget_s: float, calls: int | None = None
-) -> tuple[float, int]:
-    """Best-of-``repeats`` env-steps per second (``num_envs`` per call) of a vector env, and
-    the number of calls each timing made: ``calls``, or as many as fit in ``budget_s`` (from
-    a short probe)."""
+def warm_up(envs: gym.vector.VectorEnv) -> None:
+    """Reset and step a few calls: numba compilation, caches."""
     envs.reset(seed=0)
-    probe = batch_actions(envs.action_space, 20)
-    for actions in probe:  # warm-up: numba compilation, caches
+    for actions in batch_actions(envs.action_space, 20):
         envs.step(actions)
-    if calls is None:
-        start = time.perf_counter()
-        for actions in probe:
-            envs.step(actions)
-        per_call = (time.perf_counter() - start) / len(probe)
-        calls = max(20, int(budget_s / per_call))
-    actions = batch_actions(envs.action_space, calls, seed=1)
-    best = float("inf")
-    for _ in range(repeats):
-        envs.reset(seed=1)
-        start = time.perf_counter()
-        for batch in actions:
-            envs.step(batch)
-        best = min(best, time.perf_counter() - start)
+
+
+def calls_within(envs: gym.vector.VectorEnv, budget_s: float) -> int:
+    """How many calls fit in ``budget_s`` (from a probe of 20 calls; at least 20)."""
+    probe = batch_actions(envs.action_space, 20)
+    start = time.perf_counter()
+    for actions in probe:
+        envs.step(actions)
+    return max(20, int(budget_s * len(probe) / (time.perf_counter() - start)))
+
+
+def timed_run(envs: gym.vector.VectorEnv, actions: list[Any]) -> float:
+    """Seconds to step ``actions`` from ``reset(seed=1)`` (autoresets included)."""
+    envs.reset(seed=1)
+    start = time.perf_counter()
+    for batch in actions:
+        envs.step(batch)
+    return time.perf_counter() - start
+
+
+def vector_rate(envs: gym.vector.VectorEnv, repeats: int, budget_s: float) -> float:
+    """Best-of-``repeats`` env-steps per second (``num_envs`` per call) of a vector env, each
+    timing as many calls as fit in ``budget_s``."""
+    warm_up(envs)
+    actions = batch_actions(envs.action_space, calls_within(envs, budget_s), seed=1)
+    best = min(timed_run(envs, actions) for _ in range(repeats))
     envs.close()
-    return calls * envs.num_envs / best, calls
+    return len(actions) * envs.num_envs / best
 
 
 def main() -> None:
@@ -90,12 +97,8 @@ def main() -> None:
     print(f"machine: {platform.processor() or platform.machine()}, "
           f"python {platform.python_version()}, best of {args.repeats}\n")
     results: dict[str, Any] = {}
-    baseline = steps_per_second("CartPole-v1", 50_000, args.repeats)
-    results["CartPole-v1"] = baseline
-    print(f"CartPole-v1 single env: {baseline:.0f} steps/s\n")
-
     if args.part != "mcl":
-        results.update(ekf_rates(baseline, args.repeats, args.budget))
+        results.update(ekf_rates(args.repeats, args.budget))
     if args.part != "ekf":
         results.update(mcl_rates(args.repeats, args.budget))
     if args.json:
@@ -103,20 +106,23 @@ def main() -> None:
             json.dump(results, f, indent=2)
 
 
-def ekf_rates(baseline: float, repeats: int, budget: float) -> dict[str, float]:
-    """The EKF id's native vector env at every size, 1 and 2 threads (printed as well)."""
+def ekf_rates(repeats: int, budget: float) -> dict[str, float]:
+    """The EKF id's native vector env at every size, 1 and 2 threads, each size against a
+    CartPole-v1 baseline timed just before it (the machine's speed drifts over minutes)."""
     results = {}
-    print(f"{EKF_ID} native vector env, env-steps/s (x CartPole-v1)")
-    print(f"{'n':>6} {'1 thread':>18} {'2 threads':>18}")
+    print(f"{EKF_ID} native vector env, env-steps/s (x CartPole-v1 timed just before)")
+    print(f"{'n':>6} {'CartPole-v1':>12} {'1 thread':>18} {'2 threads':>18}")
     for n in EKF_SIZES:
+        baseline = steps_per_second("CartPole-v1", 50_000, repeats)
+        results[f"CartPole-v1 before n={n}"] = baseline
         cells = []
         for workers in (1, 2):
             envs = gym.make_vec(EKF_ID, n, vectorization_mode="vector_entry_point",
                                 workers=workers)
-            rate, _ = vector_rate(envs, repeats, budget)
+            rate = vector_rate(envs, repeats, budget)
             results[f"{EKF_ID} native n={n} workers={workers}"] = rate
             cells.append(f"{rate:>9.0f} ({rate / baseline:>5.2f})")
-        print(f"{n:>6} {cells[0]:>18} {cells[1]:>18}")
+        print(f"{n:>6} {baseline:>12.0f} {cells[0]:>18} {cells[1]:>18}")
     return results
 
 
@@ -126,15 +132,25 @@ def mcl_rates(repeats: int, budget: float) -> dict[str, dict[str, float]]:
     print(f"\nMCL ids at n = {MCL_N}, env-steps/s: native against SyncVectorEnv")
     print(f"{'env':<32} {'sync':>7} {'native 1':>9} {'native 2':>9} {'2 / sync':>9}")
     for env_id in MCL_IDS:
-        # the same episodes and calls for all three: a particle step costs 100 times more at
-        # an episode's start (100000 particles) than once KLD sampling has shrunk the set
-        sync = gym.make_vec(env_id, MCL_N, vectorization_mode="sync")
-        rates = {}
-        rates["sync"], calls = vector_rate(sync, repeats, budget)
+        variants = {"sync": gym.make_vec(env_id, MCL_N, vectorization_mode="sync")}
         for workers in (1, 2):
-            envs = gym.make_vec(env_id, MCL_N, vectorization_mode="vector_entry_point",
-                                workers=workers)
-            rates[f"native {workers}"], _ = vector_rate(envs, repeats, budget, calls)
+            variants[f"native {workers}"] = gym.make_vec(
+                env_id, MCL_N, vectorization_mode="vector_entry_point", workers=workers)
+        for envs in variants.values():
+            warm_up(envs)
+        # the same episodes and calls for all three (a particle step costs 100 times more at
+        # an episode's start, with 100000 particles, than once KLD sampling has shrunk the
+        # set), and the three timed in turn within each repeat, so that a machine slower for a
+        # while slows all three
+        actions = batch_actions(variants["sync"].action_space,
+                                calls_within(variants["sync"], budget), seed=1)
+        best = {name: float("inf") for name in variants}
+        for _ in range(repeats):
+            for name, envs in variants.items():
+                best[name] = min(best[name], timed_run(envs, actions))
+        for envs in variants.values():
+            envs.close()
+        rates = {name: len(actions) * MCL_N / seconds for name, seconds in best.items()}
         results[f"{env_id} n={MCL_N}"] = rates
         print(f"{env_id:<32} {rates['sync']:>7.0f} {rates['native 1']:>9.0f} "
               f"{rates['native 2']:>9.0f} {rates['native 2'] / rates['sync']:>9.2f}")

@@ -49,10 +49,11 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         render_envs: how many sub-envs ``render()`` draws, tiled in a grid (1: the first
             sub-env's frame as is).
         workers: threads stepping the sub-envs (the kernels release the GIL). None: one per
-            CPU core, at most 2. The MCL, grid and maze ids step their sub-envs in turn on
-            Python threads (1.3x to 2x on 2 cores); the batched EKF ids spread one kernel
-            over numba's threads once each gets 64 sub-envs or more. The results are the
-            same for any value.
+            CPU core, at most 2. The MCL, grid and maze ids step and autoreset their sub-envs
+            on Python threads, each taking the next one left (MCL: 1.6x to 2x
+            ``SyncVectorEnv`` on 2 cores); the batched EKF ids spread one kernel over
+            numba's threads once each gets 64 sub-envs or more. The results are the same for
+            any value.
         env_class: the single env class (``ActiveLocalizationEnv`` or ``MazeEnv``).
         **env_kwargs: the single env's kwargs (``scenario`` and config fields, or the maze's).
 

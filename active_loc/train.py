@@ -56,6 +56,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
 import active_loc
 from active_loc.agents.sb3 import ALGORITHMS, CONFIG_FILE, MODEL_FILE, algorithm_class
+from active_loc.envs.localization_env import ActiveLocalizationEnv
 from active_loc.envs.registration import ENTRY_POINT, MAZE_ID
 from active_loc.envs.vector_engines import batched_core
 from active_loc.integrations.sb3 import make_native_vec_env
@@ -597,8 +598,12 @@ def resolve_vec_env(
         unwrapped = env.unwrapped
         if batched_core(unwrapped):
             return "native" if n_envs >= NATIVE_MIN_ENVS else "dummy"
-        belief = getattr(getattr(unwrapped, "config", None), "belief", None)
-        threaded = belief in THREADED_BELIEFS and (os.cpu_count() or 1) >= 2
+        # the maze's grid belief is too cheap a step for threads to pay off
+        threaded = (
+            isinstance(unwrapped, ActiveLocalizationEnv)
+            and unwrapped.config.belief in THREADED_BELIEFS
+            and (os.cpu_count() or 1) >= 2
+        )
         return "native" if threaded else "dummy"
     finally:
         env.close()

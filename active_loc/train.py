@@ -584,7 +584,7 @@ def resolve_vec_env(
 
     * the ids whose vector env steps the batch in one kernel call, from
       :data:`NATIVE_MIN_ENVS` envs on. Through SB3's API the native env took 13.8% of PPO's
-      wall time at 8 envs against 24.4% for ``DummyVecEnv``, and 9.4% against 33.8% at 256;
+      wall time at 8 envs against 24.4% for ``DummyVecEnv``, and 9.4% against 33.5% at 256;
     * the particle and grid filters from 2 envs on, on a machine with 2 cores or more: their
       worker threads step two envs at once (PPO on ``LandmarkMCL-v0`` with 8 envs: 141
       steps/s against 81 with ``DummyVecEnv``). See docs/performance.md.

@@ -242,26 +242,11 @@ class BatchedLandmarkEngine:
         return build_frame(self.core, b, true_path, belief_path, int(self.steps[b]), self.title)
 
     def _write_actions(self, actions: Any, active: NDArray[np.bool_]) -> None:
-        n = self.num_envs
-        actions = np.asarray(actions)
+        # NaN and inf in continuous actions: the kernel finds them before moving anyone
+        actions = check_actions(actions, self.single_action_space, active, check_finite=False)
         if self._continuous:
-            if actions.shape != (n, 2) or actions.dtype.kind not in "fiu":
-                raise ValueError(
-                    f"actions must be real numbers of shape ({n}, 2) for "
-                    f"action_type='continuous', got {actions.dtype} {actions.shape}"
-                )
-            self.core.actions[:] = actions  # NaN and inf: the kernel finds them (see step)
+            self.core.actions[:] = actions
             return
-        if actions.shape != (n,) or actions.dtype.kind not in "iu":
-            raise ValueError(
-                f"actions must be integers of shape ({n},) for action_type='discrete', "
-                f"got {actions.dtype} {actions.shape}"
-            )
-        k = len(self._primitives)
-        bad = active & ((actions < 0) | (actions >= k))
-        if bad.any():
-            b = int(np.flatnonzero(bad)[0])
-            raise ValueError(f"the action of sub-env {b} must be in [0, {k}), got {actions[b]}")
         self.core.actions[:] = self._primitives[np.where(active, actions, 0)]
 
 
@@ -310,9 +295,7 @@ class MemberEngine:
         """Step the active members and autoreset those in ``autoreset`` (inactive ones), all
         on the threads; ``(rewards, terminated, truncated)`` of all n (zero and False for the
         inactive members)."""
-        n = self.num_envs
-        if len(actions) != n:
-            raise ValueError(f"expected {n} actions (one per sub-env), got {len(actions)}")
+        actions = check_actions(actions, self.single_action_space, active)
         tasks = [(int(b), actions[b]) for b in np.flatnonzero(active)]
         return self._run(tasks + [(b, None) for b in autoreset])
 
@@ -365,6 +348,41 @@ class MemberEngine:
 
     def frame(self, b: int) -> Any:
         return self.envs[b].render()
+
+
+def check_actions(
+    actions: Any, space: gym.Space, active: NDArray[np.bool_], check_finite: bool = True
+) -> NDArray:
+    """``actions`` as an array ``(n, *space.shape)``, checked before any sub-env moves: its
+    shape and dtype, and for the active sub-envs (``active`` ``(n,)``) an index in range
+    (a ``Discrete`` space) or, with ``check_finite``, no NaN or inf (a ``Box``). Raises
+    ``ValueError`` naming the first bad sub-env."""
+    n = active.shape[0]
+    array = np.asarray(actions)
+    if isinstance(space, gym.spaces.Discrete):
+        if array.shape != (n,) or array.dtype.kind not in "iu":
+            raise ValueError(f"actions must be integers of shape ({n},) for a discrete action "
+                             f"space, got {array.dtype} {array.shape}")
+        low, high = int(space.start), int(space.start + space.n)
+        bad = active & ((array < low) | (array >= high))
+        if bad.any():
+            b = int(np.flatnonzero(bad)[0])
+            raise ValueError(
+                f"the action of sub-env {b} must be in [{low}, {high}), got {array[b]}"
+            )
+    elif isinstance(space, gym.spaces.Box):
+        shape = (n, *space.shape)
+        if array.shape != shape or array.dtype.kind not in "fiu":
+            raise ValueError(f"actions must be real numbers of shape {shape}, got {array.dtype} "
+                             f"{array.shape}")
+        if check_finite:
+            finite = np.isfinite(array.reshape(n, -1)).all(axis=1) | ~active
+            if not finite.all():
+                b = int(np.flatnonzero(~finite)[0])
+                raise ValueError(f"the action of sub-env {b} contains NaN or inf: {array[b]!r}")
+    elif len(array) != n:
+        raise ValueError(f"expected {n} actions (one per sub-env), got {len(array)}")
+    return array
 
 
 @numba.njit(cache=True, nogil=True)

@@ -216,6 +216,29 @@ def test_bad_input_is_named() -> None:
         discrete.step(np.array([7, 0]))
 
 
+def test_bad_actions_of_threaded_sub_envs_are_named_before_any_moves() -> None:
+    """The MCL, grid and maze ids check every action before a worker thread steps anyone."""
+    for kwargs, bad_action, message in [
+        ({}, [np.nan, 0.0], "sub-env 2 contains NaN or inf"),
+        ({"action_type": "discrete"}, 9, r"sub-env 2 must be in \[0, 6\)"),
+    ]:
+        envs = gym.make_vec("ActiveLoc/GridMCL-v0", 4, vectorization_mode="vector_entry_point",
+                            workers=2, n_particles=600, **kwargs)
+        obs, _ = envs.reset(seed=0)
+        actions = np.array([envs.single_action_space.sample() for _ in range(4)])
+        actions[2] = bad_action
+        with pytest.raises(ValueError, match=message):
+            envs.step(actions)
+        assert np.array_equal(envs.engine.obs, obs)  # nobody moved
+        with pytest.raises(ValueError, match="shape"):
+            envs.step(actions[:3])
+        envs.close()
+    maze = gym.make_vec("ActiveLoc/Maze-v0", 2, vectorization_mode="vector_entry_point", size=7)
+    maze.reset(seed=0)
+    with pytest.raises(ValueError, match=r"sub-env 1 must be in \[0, 3\)"):
+        maze.step(np.array([0, 3]))
+
+
 @pytest.mark.parametrize(("env_id", "n", "kwargs"), [
     ("ActiveLoc/GridMCL-v0", 4, {"n_particles": 2000}),
     ("ActiveLoc/LandmarkEKF-v0", 130, {}),  # two shares of 65 rows

@@ -66,31 +66,27 @@ def batched_core(env: gym.Env) -> bool:
 
 
 class WorkerThreads:
-    """Worker threads an engine runs shares of a step on (started when first needed)."""
+    """Worker threads an engine runs the tasks of a step on (started when first needed)."""
 
     def __init__(self, workers: int) -> None:
         self.workers = workers
         self._pool: ThreadPoolExecutor | None = None
 
-    def run(self, fn: Any, shares: list[Any]) -> None:
-        """``fn(share)`` for every share, on the threads; re-raises the first error (a bad
-        action, say) after all have finished."""
-        if self._pool is None:
-            self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="active_loc")
-        for future in [self._pool.submit(fn, share) for share in shares]:
-            future.result()
-
     def run_tasks(self, fn: Any, tasks: list[Any]) -> None:
         """``fn(task)`` for every task, the threads each taking the next one left in the list
         as they finish one (put the longest first: the threads then end together); re-raises
-        the first error after all have finished."""
+        the first error (a failing step, say) after all have finished."""
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="active_loc")
         queue = iter(tasks)  # next() on a list iterator is atomic under the GIL
 
-        def drain(_: int) -> None:
+        def drain() -> None:
             for task in queue:
                 fn(task)
 
-        self.run(drain, list(range(min(self.workers, len(tasks)))))
+        threads = min(self.workers, len(tasks))
+        for future in [self._pool.submit(drain) for _ in range(threads)]:
+            future.result()
 
     def close(self) -> None:
         if self._pool is not None:

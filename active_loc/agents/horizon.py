@@ -5,13 +5,23 @@ robots", Robotics and Autonomous Systems 25, 1998) chooses where to go by the ex
 after getting there plus the cost of the trip. Here that is a k-step lookahead:
 
 * in ``Maze-v0``, an exact expectimax tree over all action sequences and depth readings;
-* with continuous robots, sampled rollouts of macro-actions (one motion primitive held for k
-  steps), scored by the mean over the rollouts of the summed entropies (plus the env's
-  collision penalty on every step a rollout bumps into a wall).
+* with continuous robots, a tree of macro-actions (one motion primitive held for ``hold``
+  steps), ``horizon`` macro-actions deep, scored by sampled rollouts. Each rollout follows a
+  pose drawn from the belief (the same poses for every plan) through the plan: that robot
+  moves (a wall blocks it), the belief is predicted with its controls, and at the end of each
+  macro-action the belief is corrected with the scan simulated from where that robot stands.
 
-A longer view is what keeps it out of the one-step agent's dithering (turn left, turn right,
-...): a turn pair that gains nothing now is compared with sequences that reach something
-informative later, and ties go to the previous action.
+A plan's cost is the sum of the entropies along it, plus the travel cost per metre and the
+env's collision penalty per bump. Summing the entropies, not just taking the last one, makes
+information gained sooner worth more: with the final entropy alone, a step wasted now (a move
+into a wall) costs nothing whenever the rest of the plan can still gain the same.
+
+The macro-actions are what let it see far enough. Five steps of 0.2 s per macro-action and
+three of them look 3 m ahead, which is what it takes to get out of a room and look down a
+corridor; three single steps look 0.6 m ahead, and from there every action looks alike. The
+longer view also keeps it out of the one-step agent's dithering (turn left, turn right, ...):
+a turn pair that gains nothing now is compared with plans that reach something informative
+later, and ties go to the previous action.
 """
 
 from __future__ import annotations
@@ -19,43 +29,55 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from active_loc.agents.planning import (
     candidate_actions,
     collision_penalty_of,
     entropy_of,
     planning_belief,
+    primitive_action,
     travel_of,
 )
+from active_loc.envs.actions import PRIMITIVE_NAMES
+
+#: the motion primitives a macro-action holds: all but "stay", whose repeated scans of the
+#: same view a filter that takes beams as independent would count as new information
+MACRO_PRIMITIVES = tuple(i for i, name in enumerate(PRIMITIVE_NAMES) if name != "stay")
 
 
 class HorizonPlannerAgent:
-    """Minimizes ``E[H(b_{t+1}) + ... + H(b_{t+k})] + travel_cost * distance`` (plus the
-    collision penalty times the expected number of bumps) over k-step plans. Summing the
-    entropies along the plan, not just the last one, makes information
-    gained sooner worth more: with the final entropy alone, a step wasted now (a move into a
-    wall) costs nothing whenever the rest of the plan can still gain the same, and the
-    re-planned agent wastes the next step too.
+    """Minimizes the expected ``H(b_{t+1}) + ... + H(b_{t+k})`` plus the travel cost and the
+    collision penalty over k-step plans (see the module docstring).
+
+    In ``Maze-v0`` a plan is ``horizon`` actions, scored exactly and re-planned every step.
+    With continuous robots it is ``horizon`` macro-actions of ``hold`` steps each; the entropy
+    after each macro-action counts for each of its steps, and the agent holds the best plan's
+    first macro-action for ``hold`` steps before it plans again.
 
     Args:
-        horizon: k, the number of steps looked ahead (>= 1).
+        horizon: k, the actions (maze) or macro-actions looked ahead (>= 1).
+        hold: steps a macro-action holds its motion primitive (>= 1; continuous robots).
         travel_cost: nats per metre travelled (per cell moved in the maze); 0 ignores travel.
-        n_rollouts: sampled scan sequences per macro-action (continuous robots).
+        n_rollouts: poses drawn from the belief to roll each plan out from (continuous robots).
         max_particles: particle beliefs are resampled down to this many for planning.
-        seed: the agent's own Generator (hypotheses and ties).
+        seed: the agent's own Generator (rollouts and ties).
     """
 
-    def __init__(self, horizon: int = 3, travel_cost: float = 0.01, n_rollouts: int = 4,
-                 max_particles: int = 300, seed: int | None = None) -> None:
-        if horizon < 1 or n_rollouts < 1 or max_particles < 1 or not travel_cost >= 0:
-            raise ValueError("HorizonPlannerAgent: horizon, n_rollouts and max_particles must "
-                             "be >= 1 and travel_cost >= 0")
+    def __init__(self, horizon: int = 3, hold: int = 5, travel_cost: float = 0.01,
+                 n_rollouts: int = 3, max_particles: int = 200,
+                 seed: int | None = None) -> None:
+        if min(horizon, hold, n_rollouts, max_particles) < 1 or not travel_cost >= 0:
+            raise ValueError("HorizonPlannerAgent: horizon, hold, n_rollouts and max_particles "
+                             "must be >= 1 and travel_cost >= 0")
         self.horizon = int(horizon)
+        self.hold = int(hold)
         self.travel_cost = float(travel_cost)
         self.n_rollouts = int(n_rollouts)
         self.max_particles = int(max_particles)
         self.rng = np.random.default_rng(seed)
-        self._previous: Any = None
+        self._previous: int | None = None  # index of the last choice among the candidates
+        self._held: list[Any] = []  # the rest of the macro-action being held
 
     # --- the maze: exact expectimax ------------------------------------------------------------
 
@@ -73,31 +95,58 @@ class HorizonPlannerAgent:
             value += p * (entropy_of(posterior) + self._maze_value(view, posterior, depth - 1))
         return value
 
-    # --- continuous robots: sampled macro-action rollouts ----------------------------------
+    # --- continuous robots: rollouts of macro-action plans ---------------------------------
 
-    def _rollout_value(self, view: Any, action: Any, belief: Any, seed: int) -> float:
-        rng = np.random.default_rng(seed)
+    def _plan_costs(self, view: Any, belief: Any, pose: NDArray[np.float64], depth: int,
+                    seed: list[int]) -> NDArray[np.float64]:
+        """The cost (nats) of every plan ``depth`` macro-actions long from ``belief``, rolled
+        out from the hypothetical robot at ``pose`` ``(3,)``: ``(len(MACRO_PRIMITIVES) **
+        depth,)``, the plans in lexicographic order. Siblings draw the same noise (``seed``
+        and the depth seed it), so that plans are compared on common random numbers."""
+        if depth == 0:
+            return np.zeros(1)
         penalty = collision_penalty_of(view)
-        total = 0.0
-        for _ in range(self.n_rollouts):
-            b = belief
-            for _ in range(self.horizon):
-                b, _, _, blocked = view.hypothesize(action, b, rng)
-                total += entropy_of(b) + (penalty if blocked else 0.0)
-        return total / self.n_rollouts + self.travel_cost * self.horizon * travel_of(view, action)
+        costs = []
+        for primitive in MACRO_PRIMITIVES:
+            rng = np.random.default_rng([*seed, depth])
+            action = primitive_action(view, primitive)
+            control = view.decode(action)
+            moved, at = belief.copy(), pose
+            cost = 0.0
+            for _ in range(self.hold):
+                at, blocked = view.move(at, control)
+                view.predict(moved, control, blocked, rng)
+                cost += penalty if blocked else self.travel_cost * travel_of(view, action)
+            view.correct(moved, at, rng)
+            cost += self.hold * entropy_of(moved)
+            costs.append(cost + self._plan_costs(view, moved, at, depth - 1, seed))
+        return np.concatenate(costs)
 
-    def scores(self, view: Any) -> tuple[list[Any], np.ndarray]:
-        """The candidate first actions and the value of the best plan starting with each."""
-        actions = candidate_actions(view)
+    def _macro_scores(self, view: Any) -> NDArray[np.float64]:
+        """For each first macro-action, the expected cost of the best plan starting with it:
+        the plans' costs averaged over the rollouts, then the least per first macro-action."""
         belief = planning_belief(view.belief, self.max_particles, self.rng)
-        if hasattr(view, "outcomes"):
-            values = [self._maze_action_value(view, a, belief, self.horizon) for a in actions]
-        else:
-            seed = int(self.rng.integers(2**63))  # common random numbers across the plans
-            values = [self._rollout_value(view, a, belief, seed) for a in actions]
-        return actions, np.array(values)
+        seed = int(self.rng.integers(2**63))  # common random numbers across the plans
+        total = np.zeros(len(MACRO_PRIMITIVES) ** self.horizon)
+        for rollout in range(self.n_rollouts):
+            pose = view.draw_pose(belief, np.random.default_rng([seed, rollout]))
+            total += self._plan_costs(view, belief, pose, self.horizon, [seed, rollout])
+        return (total / self.n_rollouts).reshape(len(MACRO_PRIMITIVES), -1).min(axis=1)
 
-    def _tie_break(self, best: np.ndarray) -> int:
+    # --- choosing --------------------------------------------------------------------------
+
+    def scores(self, view: Any) -> tuple[list[Any], NDArray[np.float64]]:
+        """The candidate first actions (maze actions, or the macro-actions' primitives as env
+        actions) and the expected cost of the best plan starting with each."""
+        if hasattr(view, "outcomes"):
+            belief = view.belief.copy()
+            actions = candidate_actions(view)
+            values = [self._maze_action_value(view, a, belief, self.horizon) for a in actions]
+            return actions, np.array(values)
+        actions = [primitive_action(view, p) for p in MACRO_PRIMITIVES]
+        return actions, self._macro_scores(view)
+
+    def _tie_break(self, best: NDArray[np.int64]) -> int:
         """Among equally good first actions: the previous one (keep going), else random."""
         if self._previous is not None and self._previous in best.tolist():
             return int(self._previous)
@@ -105,9 +154,13 @@ class HorizonPlannerAgent:
 
     def act(self, observation: Any, view: Any) -> Any:
         if view.step == 0:
-            self._previous = None  # a new episode
+            self._previous, self._held = None, []  # a new episode
+        if self._held:
+            return self._held.pop()
         actions, values = self.scores(view)
         best = np.flatnonzero(values <= values.min() + 1e-9)
         index = self._tie_break(best)
         self._previous = index
+        if not hasattr(view, "outcomes"):
+            self._held = [actions[index]] * (self.hold - 1)
         return actions[index]

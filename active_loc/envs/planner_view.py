@@ -99,13 +99,12 @@ class PlannerView:
     ) -> tuple[AnyBelief, NDArray[np.float64], NDArray[np.bool_], bool]:
         """One hypothetical step from ``belief``: predict, then a measurement hypothesis.
 
-        The pose that generates the hypothetical scan is drawn from the predicted belief
-        (with ``rng``: a Gaussian draw, a particle picked by weight, or a grid cell's pose
-        picked by its mass), not taken from the true pose, which the view does not have.
-        Without known correspondences the filter treats the hypothetical scan as the env's
-        filter does (an EKF associates it by maximum likelihood, MCL per particle); the
-        hypothesis has neither misses nor clutter. A grid belief is scored at its free cell
-        poses, its likelihood raised to :attr:`likelihood_exponent` as the env's filter does.
+        The pose that generates the hypothetical scan is drawn from the belief with ``rng``
+        (:meth:`draw_pose`), not taken from the true pose, which the view does not have. On
+        landmark maps it is drawn from the predicted belief. On grid maps it is drawn first and
+        moved (:meth:`move`), so that a move into a wall is blocked: the env then predicts with
+        V = 0, and the robot knows it, so bumping teaches the planner nothing. The scan then
+        corrects the belief as the env's filter would (:meth:`correct`).
 
         Returns:
             The updated copy of the belief, the scan (landmarks ``(N, 2)``, lidar ``(M,)``),
@@ -115,83 +114,100 @@ class PlannerView:
         """
         out = belief.copy()
         control = self.decode(action)
-        if isinstance(out, GridBelief):
-            z, blocked = self._simulate_grid(out, control, rng)
-            return out, z, np.ones(z.shape[0], dtype=np.bool_), blocked
-        if not isinstance(out, MCLBelief):
-            out.predict(control[None])
-            root = np.linalg.cholesky(out.cov[0] + 1e-12 * np.eye(3))
-            pose = out.mean[0] + root @ rng.standard_normal(3)
-            z, visible = self.sensor.measure(pose, self.map.positions, rng)
-            if self.known_correspondences:
-                out.update(z[None], visible[None], self.map.positions)
-            else:
-                assert isinstance(out, EKFBelief)
-                update_with_association(out, z[visible], self.map.positions,
-                                        self.association_gate)
-            return out, z, visible, False
         if isinstance(self.map, OccupancyGrid):
-            # the robot's pose first: a move into a wall is blocked, and the robot knows it
-            # (the env then predicts with V = 0), so bumping teaches the planner nothing
-            cumulative = np.cumsum(out.weights)
-            pick = int(np.searchsorted(cumulative, rng.random() * cumulative[-1], side="right"))
-            pose, blocked = self._move(out.particles[min(pick, len(cumulative) - 1)], control)
-            out.predict(np.array([0.0 if blocked else control[0], control[1]]), rng)
-            arrays = self.map.kernel_arrays()
-            z = self.sensor.measure(pose, arrays, rng)
-            out.update(self.scan_log_likelihood(z, out.particles), rng)
-            return out, z, np.ones(z.shape[0], dtype=np.bool_), blocked
-        out.predict(control, rng)
-        cumulative = np.cumsum(out.weights)
-        pick = int(np.searchsorted(cumulative, rng.random() * cumulative[-1], side="right"))
-        pose = out.particles[min(pick, len(cumulative) - 1)].copy()
-        z, visible = self.sensor.measure(pose, self.map.positions, rng)
-        out.update_landmarks(
-            z, visible, self.map.positions, self.sensor, rng,
-            known_correspondence=self.known_correspondences,
-        )
-        return out, z, visible, False
+            pose, blocked = self.move(self.draw_pose(out, rng), control)
+            self.predict(out, control, blocked, rng)
+        else:
+            self.predict(out, control, False, rng)
+            pose, blocked = self.draw_pose(out, rng), False
+        z, visible = self.correct(out, pose, rng)
+        return out, z, visible, blocked
 
-    def _move(
+    # --- the pieces of a hypothetical step (planners that roll out longer use them too) ------
+
+    def draw_pose(self, belief: AnyBelief, rng: np.random.Generator) -> NDArray[np.float64]:
+        """A pose ``(3,)`` drawn from ``belief`` with one draw of ``rng``: a Gaussian draw
+        (EKF), a particle picked by weight (MCL) or a grid cell's pose picked by its mass."""
+        if isinstance(belief, GridBelief):
+            mass = belief.prob[0].reshape(-1)
+            return belief.cell_poses().reshape(-1, 3)[_pick(mass, rng)].copy()
+        if isinstance(belief, MCLBelief):
+            return belief.particles[_pick(belief.weights, rng)].copy()
+        root = np.linalg.cholesky(belief.cov[0] + 1e-12 * np.eye(3))
+        return belief.mean[0] + root @ rng.standard_normal(3)
+
+    def move(
         self, pose: NDArray[np.float64], control: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], bool]:
-        """A hypothetical robot at ``pose`` ``(3,)`` after ``control`` on the grid map,
-        noise-free: turned, and moved unless the straight move crosses a wall. Returns the
-        new pose and whether the move was blocked."""
-        assert isinstance(self.map, OccupancyGrid)
+        """A hypothetical robot at ``pose`` ``(3,)`` after ``control`` (V m/s, omega rad/s),
+        noise-free. On a grid map it turns, and moves unless the straight move crosses a wall;
+        on a landmark map nothing blocks it. Returns the new pose and whether the move was
+        blocked."""
         dt = self.motion.dt
         step = float(control[0]) * dt
         heading = float(pose[2])
         out = np.array([pose[0], pose[1], wrap_angle(heading + float(control[1]) * dt)])
         if step == 0.0:
             return out, False
-        direction = heading if step > 0.0 else heading + np.pi
-        values, res, ox, oy, c, s = self.map.kernel_arrays()
-        run = cast_ray(values, res, ox, oy, c, s, float(pose[0]), float(pose[1]), direction,
-                       abs(step), True)
         target = pose[:2] + step * np.array([np.cos(heading), np.sin(heading)])
-        if run < abs(step) or not self.map.is_free(target):
-            return out, True
+        if isinstance(self.map, OccupancyGrid):
+            direction = heading if step > 0.0 else heading + np.pi
+            values, res, ox, oy, c, s = self.map.kernel_arrays()
+            run = cast_ray(values, res, ox, oy, c, s, float(pose[0]), float(pose[1]),
+                           direction, abs(step), True)
+            if run < abs(step) or not self.map.is_free(target):
+                return out, True
         out[:2] = target
         return out, False
 
-    def _simulate_grid(
-        self, belief: GridBelief, control: NDArray[np.float64], rng: np.random.Generator
-    ) -> tuple[NDArray[np.float64], bool]:
-        """Predict a grid belief with ``control``, scan from a cell pose drawn by its mass,
-        correct (in place); returns the scan ``(M,)`` and whether the move was blocked."""
+    def predict(self, belief: AnyBelief, control: NDArray[np.float64], blocked: bool,
+                rng: np.random.Generator) -> None:
+        """The filter's motion update of ``belief`` (in place) with ``control``, as the env
+        makes it: with V = 0 when the move was ``blocked``. MCL draws its noise from ``rng``."""
+        v = 0.0 if blocked else float(control[0])
+        omega = float(control[1])
+        if isinstance(belief, GridBelief):
+            noise_std = np.sqrt(np.diag(self.motion.noise_cov))
+            belief.predict_unicycle(v, omega, self.motion.dt, noise_std)
+        elif isinstance(belief, MCLBelief):
+            belief.predict(np.array([v, omega]), rng)
+        else:
+            belief.predict(np.array([[v, omega]]))
+
+    def correct(
+        self, belief: AnyBelief, pose: NDArray[np.float64], rng: np.random.Generator
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """Simulate the scan from ``pose`` ``(3,)`` (sensor noise from ``rng``) and correct
+        ``belief`` with it in place, as the env's filter would. Without known correspondences
+        an EKF associates the scan by maximum likelihood and MCL scores it per particle; the
+        hypothetical scan has neither misses nor clutter. A grid belief is scored at its free
+        cell poses, its likelihood raised to :attr:`likelihood_exponent` as the env's filter
+        does. Returns the scan (landmarks ``(N, 2)``, lidar ``(M,)``) and its visibility
+        (``(N,)``; all True for the lidar)."""
+        if isinstance(self.map, OccupancyGrid):
+            z = self.sensor.measure(pose, self.map.kernel_arrays(), rng)
+            if isinstance(belief, GridBelief):
+                self._correct_grid(belief, z)
+            else:
+                belief.update(self.scan_log_likelihood(z, belief.particles), rng)
+            return z, np.ones(z.shape[0], dtype=np.bool_)
+        z, visible = self.sensor.measure(pose, self.map.positions, rng)
+        if isinstance(belief, MCLBelief):
+            belief.update_landmarks(
+                z, visible, self.map.positions, self.sensor, rng,
+                known_correspondence=self.known_correspondences,
+            )
+        elif self.known_correspondences:
+            belief.update(z[None], visible[None], self.map.positions)
+        else:
+            assert isinstance(belief, EKFBelief)
+            update_with_association(belief, z[visible], self.map.positions,
+                                    self.association_gate)
+        return z, visible
+
+    def _correct_grid(self, belief: GridBelief, z: NDArray[np.float64]) -> None:
+        """Correct a grid belief with the scan ``z`` ``(M,)`` (in place)."""
         assert isinstance(self.map, OccupancyGrid) and isinstance(self.sensor, LidarSensor)
-        noise_std = np.sqrt(np.diag(self.motion.noise_cov))
-        poses = belief.cell_poses()  # (X, Y, H, 3)
-        cumulative = np.cumsum(belief.prob[0].reshape(-1))
-        pick = int(np.searchsorted(cumulative, rng.random() * cumulative[-1], side="right"))
-        # the robot's pose first, moved (a wall blocks it: the env then predicts with V = 0)
-        pose, blocked = self._move(poses.reshape(-1, 3)[min(pick, cumulative.shape[0] - 1)],
-                                   control)
-        belief.predict_unicycle(0.0 if blocked else float(control[0]), float(control[1]),
-                                self.motion.dt, noise_std)
-        arrays = self.map.kernel_arrays()
-        z = self.sensor.measure(pose, arrays, rng)
         free = belief.free[0]
         _, nx, ny, nh = belief.shape
         if self.sensor.model == "likelihood_field" and belief.origin == self.map.origin:
@@ -204,11 +220,19 @@ class PlannerView:
                 (np.arange(ny) + 0.5) * ratio, free, self.map.resolution, table,
             )
         else:
-            free_poses = poses[free]  # (F, H, 3)
+            free_poses = belief.cell_poses()[free]  # (F, H, 3)
             log_lik = self.sensor.log_likelihood(
-                z, free_poses.reshape(-1, 3), arrays, self.map.distance_field()
+                z, free_poses.reshape(-1, 3), self.map.kernel_arrays(),
+                self.map.distance_field()
             )
             full = np.full((nx, ny, nh), -np.inf)
             full[free] = log_lik.reshape(free_poses.shape[:2])
         belief.update_log(self.likelihood_exponent * full)
-        return z, blocked
+
+
+def _pick(weights: NDArray[np.float64], rng: np.random.Generator) -> int:
+    """An index into ``weights`` ``(K,)`` (not necessarily normalized) drawn by weight with
+    one uniform of ``rng``."""
+    cumulative = np.cumsum(weights)
+    pick = int(np.searchsorted(cumulative, rng.random() * cumulative[-1], side="right"))
+    return min(pick, cumulative.shape[0] - 1)

@@ -47,6 +47,7 @@ CASES = [
     ("ActiveLoc/LandmarkEKF-v0", {}, "wanderer"),
     ("ActiveLoc/Textbook-v0", {}, "passive"),
     ("ActiveLoc/GridMCL-v0", {"n_particles": 2000, "kld": False}, "greedy"),
+    ("ActiveLoc/GridMCL-v0", {"n_particles": 2000, "kld": False}, "horizon"),
     ("ActiveLoc/GridMCL-v0", {"action_type": "discrete"}, "wall_follower"),
 ]
 
@@ -167,9 +168,86 @@ def test_a_planned_move_into_a_wall_is_blocked_as_in_the_env():
     view = env.unwrapped.planner_view()
     speed = view.limits.primitives()[1]  # forward
     facing_wall = np.array([4.45, 1.25, 0.0])  # 0.05 m from the east wall
-    moved, blocked = view._move(facing_wall, speed)
+    moved, blocked = view.move(facing_wall, speed)
     assert blocked and np.array_equal(moved[:2], facing_wall[:2])
     open_floor = np.array([2.0, 1.25, 0.0])
-    moved, blocked = view._move(open_floor, speed)
+    moved, blocked = view.move(open_floor, speed)
     assert not blocked
     assert moved[0] == pytest.approx(2.0 + speed[0] * view.limits.dt)
+
+
+def test_a_move_on_a_landmark_map_is_the_noise_free_unicycle():
+    env = gym.make("ActiveLoc/LandmarkEKF-v0")
+    env.reset(seed=0)
+    view = env.unwrapped.planner_view()
+    pose = np.array([1.0, 2.0, 0.5])
+    control = np.array([0.8, -0.4])
+    moved, blocked = view.move(pose, control)
+    dt = view.limits.dt
+    expected = [1.0 + 0.8 * np.cos(0.5) * dt, 2.0 + 0.8 * np.sin(0.5) * dt, 0.5 - 0.4 * dt]
+    assert not blocked
+    np.testing.assert_allclose(moved, expected)
+
+
+@pytest.mark.parametrize(("env_id", "kwargs"), [
+    ("ActiveLoc/LandmarkEKF-v0", {}),
+    ("ActiveLoc/LandmarkEKFUnknown-v0", {}),
+    ("ActiveLoc/LandmarkMCL-v0", {"n_particles": 500, "kld": False}),
+    ("ActiveLoc/GridMCL-v0", {"n_particles": 500, "kld": False}),
+    ("ActiveLoc/GridMarkov-v0", {}),
+])
+def test_hypothesize_is_its_pieces_in_order(env_id, kwargs):
+    """A rollout made of draw_pose, move, predict and correct steps the belief exactly as
+    hypothesize does, so that long rollouts and one-step scores speak of the same filter."""
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=2)
+    view = env.unwrapped.planner_view()
+    env.action_space.seed(3)
+    action = env.action_space.sample()
+    control = view.decode(action)
+    one, z_one, _, blocked_one = view.hypothesize(action, view.belief, np.random.default_rng(7))
+    two, rng = view.belief.copy(), np.random.default_rng(7)
+    if hasattr(view.map, "kernel_arrays"):
+        pose, blocked = view.move(view.draw_pose(two, rng), control)
+        view.predict(two, control, blocked, rng)
+    else:
+        view.predict(two, control, False, rng)
+        pose, blocked = view.draw_pose(two, rng), False
+    z_two, _ = view.correct(two, pose, rng)
+    assert blocked == blocked_one
+    np.testing.assert_array_equal(z_one, z_two)
+    assert float(np.ravel(one.entropy())[0]) == float(np.ravel(two.entropy())[0])
+
+
+def test_the_horizon_planner_holds_each_macro_action_then_plans_again():
+    env = gym.make("ActiveLoc/GridMCL-v0", n_particles=500, kld=False, action_type="discrete")
+    agent = HorizonPlannerAgent(horizon=1, hold=3, n_rollouts=1, seed=0)
+    obs, _ = env.reset(seed=4)
+    calls = []
+    scores = agent.scores
+    agent.scores = lambda view: calls.append(view.step) or scores(view)
+    actions = []
+    for _ in range(7):
+        action = agent.act(obs, env.unwrapped.planner_view())
+        actions.append(action)
+        obs, *_ = env.step(action)
+    assert calls == [0, 3, 6]
+    assert actions[0] == actions[1] == actions[2] and actions[3] == actions[4] == actions[5]
+
+
+def test_the_horizon_planner_scores_every_plan_of_macro_actions():
+    """Plans are sequences of the five moving primitives: 5 ** horizon of them, each with a
+    finite cost; a plan's first macro-action scores as its best continuation."""
+    from active_loc.agents.horizon import MACRO_PRIMITIVES
+
+    env = gym.make("ActiveLoc/GridMCL-v0", n_particles=500, kld=False, action_type="discrete")
+    env.reset(seed=1)
+    view = env.unwrapped.planner_view()
+    agent = HorizonPlannerAgent(horizon=2, hold=2, n_rollouts=2, seed=0)
+    pose = view.draw_pose(view.belief, np.random.default_rng(0))
+    costs = agent._plan_costs(view, view.belief, pose, 2, [0, 0])
+    assert costs.shape == (len(MACRO_PRIMITIVES) ** 2,) and np.all(np.isfinite(costs))
+    actions, values = agent.scores(view)
+    assert actions == list(MACRO_PRIMITIVES) and values.shape == (len(MACRO_PRIMITIVES),)
+    with pytest.raises(ValueError, match="hold"):
+        HorizonPlannerAgent(hold=0)

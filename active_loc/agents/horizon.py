@@ -41,8 +41,9 @@ from active_loc.agents.planning import (
 )
 from active_loc.envs.actions import PRIMITIVE_NAMES
 
-#: the motion primitives a macro-action holds: all but "stay", whose repeated scans of the
-#: same view a filter that takes beams as independent would count as new information
+#: the motion primitives a macro-action holds: all but "stay", which spends a whole
+#: macro-action rescanning one view (and a lidar filter that takes its beams as independent
+#: would count those repeats as new information)
 MACRO_PRIMITIVES = tuple(i for i, name in enumerate(PRIMITIVE_NAMES) if name != "stay")
 
 

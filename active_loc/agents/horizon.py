@@ -112,12 +112,13 @@ class HorizonPlannerAgent:
             rng = np.random.default_rng([*seed, depth])
             action = primitive_action(view, primitive)
             control = view.decode(action)
+            travel = self.travel_cost * travel_of(view, action)  # of one unblocked step
             moved, at = belief.copy(), pose
             cost = 0.0
             for _ in range(self.hold):
                 at, blocked = view.move(at, control)
                 view.predict(moved, control, blocked, rng)
-                cost += penalty if blocked else self.travel_cost * travel_of(view, action)
+                cost += penalty if blocked else travel
             view.correct(moved, at, rng)
             cost += self.hold * entropy_of(moved)
             costs.append(cost + self._plan_costs(view, moved, at, depth - 1, seed))

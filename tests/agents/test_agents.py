@@ -249,5 +249,11 @@ def test_the_horizon_planner_scores_every_plan_of_macro_actions():
     assert costs.shape == (len(MACRO_PRIMITIVES) ** 2,) and np.all(np.isfinite(costs))
     actions, values = agent.scores(view)
     assert actions == list(MACRO_PRIMITIVES) and values.shape == (len(MACRO_PRIMITIVES),)
+    # each first macro-action scores as its best continuation, averaged over the rollouts
+    by_rollout = {0: np.random.default_rng(1).random(25), 1: np.random.default_rng(2).random(25)}
+    agent._plan_costs = lambda view, belief, pose, depth, seed: by_rollout[seed[1]]
+    _, values = agent.scores(view)
+    expected = (0.5 * (by_rollout[0] + by_rollout[1])).reshape(5, 5).min(axis=1)
+    np.testing.assert_allclose(values, expected)
     with pytest.raises(ValueError, match="hold"):
         HorizonPlannerAgent(hold=0)

@@ -125,6 +125,9 @@ class LocalizationConfig:
     reward: str = "info_gain"  # "info_gain", "neg_entropy", "logdet" or "trace"
     step_cost: float = 0.0  # subtracted every step (>= 0)
     collision_penalty: float = 1.0  # subtracted on a blocked move (>= 0)
+    # added on the step the episode terminates (confident belief): + when the belief is right
+    # (is_success), - when it is confidently wrong (>= 0; needs terminate_when_localized)
+    outcome_reward: float = 0.0
 
     # --- termination and success ---------------------------------------------------------
     terminate_when_localized: bool = True
@@ -302,6 +305,12 @@ class LocalizationConfig:
             )
         _positive("step_cost", self.step_cost, allow_zero=True)
         _positive("collision_penalty", self.collision_penalty, allow_zero=True)
+        _positive("outcome_reward", self.outcome_reward, allow_zero=True)
+        if self.outcome_reward > 0 and not self.terminate_when_localized:
+            raise ValueError(
+                "outcome_reward is paid on the step the belief becomes confident and ends the "
+                "episode: it needs terminate_when_localized=True"
+            )
         for name in (
             "localized_position_std",
             "localized_heading_std",

@@ -40,7 +40,7 @@ from active_loc.beliefs.entropy import LOG_2PIE_3, det3
 from active_loc.envs.actions import ControlLimits
 from active_loc.envs.config import LocalizationConfig
 from active_loc.envs.observations import belief_observation_size, write_belief_observation
-from active_loc.envs.rewards import REWARD_CODES, uncertainty_reward
+from active_loc.envs.rewards import REWARD_CODES, outcome_term, uncertainty_reward
 from active_loc.geometry import wrap_angle_scalar
 from active_loc.maps import LandmarkMap, random_landmark_map
 from active_loc.motion import UnicycleModel, move_within_bounds_scalar
@@ -83,7 +83,8 @@ TEXTBOOK_BOUNDS = (-2.0, -2.0, 14.0, 14.0)
     P_RUN_EKF,
 ) = range(15)
 P_Q, P_QROOT, P_R, P_RROOT = 15, 24, 33, 37
-N_PARAMS = 41
+P_OUTCOME = 41  # outcome_reward
+N_PARAMS = 42
 
 # layout of a row of ``state``
 X_POSE, X_MEAN, X_COV, X_BOX, X_NOISE_CURSOR, X_STATS = 0, 3, 6, 15, 21, 22
@@ -110,8 +111,9 @@ WORLD_SIZE = 5
     S_SUCCESS,
     S_TERMINAL,  # the episode's goal is reached (terminates with terminate_when_localized)
     S_KIDNAPPED,  # the robot was kidnapped on this step
-) = range(15)
-N_STATS = 15
+    S_OUTCOME,  # the outcome reward term of this step (``outcome_reward``, signed)
+) = range(16)
+N_STATS = 16
 STATE_SIZE = X_STATS + N_STATS
 
 
@@ -165,6 +167,7 @@ def build_models(cfg: LocalizationConfig) -> EnvModels:
     params[P_QROOT : P_QROOT + 9] = motion.noise_root.ravel()
     params[P_R : P_R + 4] = sensor.noise_cov.ravel()
     params[P_RROOT : P_RROOT + 4] = sensor.noise_root.ravel()
+    params[P_OUTCOME] = cfg.outcome_reward
     limits = ControlLimits(cfg.action_type, cfg.dt, cfg.v_min, cfg.v_max, cfg.omega_max)
     return EnvModels(motion, sensor, params, limits.primitives(), limits)
 
@@ -272,6 +275,7 @@ def _finish_one(params: NDArray, state: NDArray, world: NDArray, obs: NDArray) -
     stats[S_LOCALIZED] = 1.0 if localized else 0.0
     stats[S_SUCCESS] = 1.0 if success else 0.0
     stats[S_TERMINAL] = stats[S_LOCALIZED]
+    stats[S_OUTCOME] = outcome_term(stats[S_TERMINAL] > 0.5, success, params[P_OUTCOME])
     visible = world[:, W_VISIBLE]
     stats[S_N_VISIBLE] = visible.sum()
     write_belief_observation(
@@ -434,6 +438,7 @@ def reset_member_kernel(
     row[X_NOISE_CURSOR] = NOISE_EXHAUSTED  # the first step draws a fresh noise buffer
     _finish_one(params, row, world[b], obs[b])
     row[X_STATS + S_UNCERTAINTY_REWARD] = 0.0
+    row[X_STATS + S_OUTCOME] = 0.0
 
 
 def executed_controls(actions: NDArray, params: NDArray, collided: NDArray) -> NDArray:

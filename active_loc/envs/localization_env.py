@@ -20,6 +20,7 @@ from active_loc.envs.landmark_core import (
     S_LOCALIZED,
     S_N_VISIBLE,
     S_NIS,
+    S_OUTCOME,
     S_POS_ERR,
     S_SUCCESS,
     S_TERMINAL,
@@ -40,6 +41,7 @@ _ENTROPY = X_STATS + S_ENTROPY
 _COLLIDED = X_STATS + S_COLLIDED
 _UNCERTAINTY = X_STATS + S_UNCERTAINTY_REWARD
 _TERMINAL = X_STATS + S_TERMINAL
+_OUTCOME = X_STATS + S_OUTCOME
 _KIDNAPPED = X_STATS + S_KIDNAPPED
 
 
@@ -86,7 +88,9 @@ class ActiveLocalizationEnv(gym.Env):
 
     ``reward="info_gain"``: ``H(b_{t-1}) - H(b_t)`` (nats) ``- step_cost``
     ``- collision_penalty`` on a blocked move; also ``"neg_entropy"``, ``"logdet"``,
-    ``"trace"`` (:mod:`active_loc.envs.rewards`). ``info["reward_terms"]`` names every term.
+    ``"trace"`` (:mod:`active_loc.envs.rewards`); ``+outcome_reward`` on the step the episode
+    terminates with a right belief, ``-outcome_reward`` with a confidently wrong one (0 by
+    default). ``info["reward_terms"]`` names every term.
 
     ## Starting State
 
@@ -213,6 +217,7 @@ class ActiveLocalizationEnv(gym.Env):
         uncertainty = row[_UNCERTAINTY]
         info = self._info(row)
         reward = uncertainty - self._step_cost - (self._collision_penalty if collided else 0.0)
+        reward += row[_OUTCOME]
         if self.render_mode is not None:
             self._true_path.append(core.pose[0, :2].copy())
             self._belief_path.append(core.state[0, X_MEAN : X_MEAN + 2].copy())
@@ -332,7 +337,7 @@ def info_from_stats(
         "collisions": collisions,
         "reward_terms": reward_terms(
             reward_name, stats[S_UNCERTAINTY_REWARD], stats[S_COLLIDED] > 0.5, step_cost,
-            collision_penalty,
+            collision_penalty, stats[S_OUTCOME],
         ),
         "n_visible": int(stats[S_N_VISIBLE]),
         "nis": stats[S_NIS],

@@ -44,6 +44,7 @@ from active_loc.envs.landmark_core import (
     S_LOCALIZED,
     S_LOGDET,
     S_N_VISIBLE,
+    S_OUTCOME,
     S_POS_ERR,
     S_POS_STD,
     S_SUCCESS,
@@ -68,7 +69,7 @@ from active_loc.envs.observations import (
     write_belief_header,
     write_landmark_slots,
 )
-from active_loc.envs.rewards import REWARD_CODES, uncertainty_reward
+from active_loc.envs.rewards import REWARD_CODES, outcome_term, uncertainty_reward
 from active_loc.geometry import wrap_angle
 from active_loc.maps import LandmarkMap, OccupancyGrid, random_landmark_map
 from active_loc.maps.generators import GENERATORS
@@ -429,6 +430,9 @@ class ParticleCore(StateViews):
         stats[S_LOCALIZED] = 1.0 if localized else 0.0
         stats[S_SUCCESS] = 1.0 if success else 0.0
         stats[S_TERMINAL] = 1.0 if localized and not kidnap_pending else 0.0
+        stats[S_OUTCOME] = 0.0 if first else outcome_term(
+            stats[S_TERMINAL] > 0.5, success, cfg.outcome_reward
+        )
         stats[S_KIDNAPPED] = 1.0 if kidnapped_now else 0.0
         stats[S_N_VISIBLE] = float(self.visible[0].sum()) if not self.grid_mode else 0.0
         self._write_observation(mean, cov, entropy)

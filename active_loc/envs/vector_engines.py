@@ -39,6 +39,7 @@ from active_loc.envs.landmark_core import (
     S_LOCALIZED,
     S_N_VISIBLE,
     S_NIS,
+    S_OUTCOME,
     S_POS_ERR,
     S_SUCCESS,
     S_TERMINAL,
@@ -194,14 +195,15 @@ class BatchedLandmarkEngine:
         filled, whatever the mask. The arrays are rows of three fresh blocks, one per dtype,
         filled by one kernel call."""
         n = self.num_envs
-        reals = np.empty((8, n))
+        reals = np.empty((9, n))
         flags = np.empty((3, n), dtype=np.bool_)
         counts = np.empty((2, n), dtype=np.int64)
         info_columns(self.core.state, self.collisions, self._step_cost, self._collision_penalty,
                      reals, flags, counts)
         mask = mask.copy()
         mask.flags.writeable = False
-        terms = {self._reward_name: reals[5], "step_cost": reals[6], "collision": reals[7]}
+        terms = {self._reward_name: reals[5], "step_cost": reals[6], "collision": reals[7],
+                 "outcome": reals[8]}
         info: BatchInfo = {  # the single env's keys, in its order
             "pose_error": reals[0],
             "heading_error": reals[1],
@@ -398,6 +400,7 @@ def step_outcomes(
         collided = state[b, X_STATS + S_COLLIDED] > 0.5
         penalty = collision_penalty if collided else 0.0
         rewards[b] = state[b, X_STATS + S_UNCERTAINTY_REWARD] - step_cost - penalty
+        rewards[b] += state[b, X_STATS + S_OUTCOME]
         terminated[b] = terminate and state[b, X_STATS + S_TERMINAL] > 0.5
         collisions[b] += collided
         steps[b] += 1
@@ -409,9 +412,10 @@ def info_columns(
     reals: NDArray, flags: NDArray, counts: NDArray,
 ) -> None:
     """The info values of every member as :func:`info_from_stats` has them, a column per
-    member (out): ``reals`` ``(8, n)``: pose error, heading error, entropy, NIS, association
-    accuracy, then the reward terms (uncertainty, step cost, collision); ``flags`` ``(3, n)``:
-    localized, success, kidnapped; ``counts`` ``(2, n)``: collisions, landmarks in view."""
+    member (out): ``reals`` ``(9, n)``: pose error, heading error, entropy, NIS, association
+    accuracy, then the reward terms (uncertainty, step cost, collision, outcome); ``flags``
+    ``(3, n)``: localized, success, kidnapped; ``counts`` ``(2, n)``: collisions, landmarks in
+    view."""
     for b in range(state.shape[0]):
         stats = state[b, X_STATS:]
         reals[0, b] = stats[S_POS_ERR]
@@ -422,6 +426,7 @@ def info_columns(
         reals[5, b] = stats[S_UNCERTAINTY_REWARD]
         reals[6, b] = -step_cost
         reals[7, b] = -collision_penalty if stats[S_COLLIDED] > 0.5 else 0.0
+        reals[8, b] = stats[S_OUTCOME]
         flags[0, b] = stats[S_LOCALIZED] > 0.5
         flags[1, b] = stats[S_SUCCESS] > 0.5
         flags[2, b] = stats[S_KIDNAPPED] > 0.5

@@ -101,6 +101,7 @@ def test_reset_info_has_zero_reward_terms() -> None:
     _, info = gym.make(LANDMARK, step_cost=0.5).reset(seed=0)
     assert info["reward_terms"]["info_gain"] == 0.0
     assert info["reward_terms"]["collision"] == 0.0
+    assert info["reward_terms"]["outcome"] == 0.0
 
 
 # -- rewards -----------------------------------------------------------------------------------
@@ -115,9 +116,46 @@ def test_reward_is_the_sum_of_its_named_terms(env_id: str, reward: str) -> None:
         _, *steps = run_episode(env, seed, rng)
         for _, r, _, _, info in steps:
             terms = info["reward_terms"]
-            assert set(terms) == {reward, "step_cost", "collision"}
+            assert set(terms) == {reward, "step_cost", "collision", "outcome"}
             assert terms["step_cost"] == -0.01
             assert r == pytest.approx(sum(terms.values()), rel=0, abs=1e-12)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_the_outcome_term_is_paid_only_on_the_terminal_step_signed_by_success(
+    env_id: str,
+) -> None:
+    # Textbook-v0 runs its exercise to the end unless told to stop when localized
+    env = gym.make(env_id, outcome_reward=2.5, terminate_when_localized=True,
+                   max_episode_steps=100)
+    rng = np.random.default_rng(5)
+    for seed in (0, 1):
+        _, *steps = run_episode(env, seed, rng)
+        for _, r, terminated, _, info in steps:
+            expected = (2.5 if info["is_success"] else -2.5) if terminated else 0.0
+            assert info["reward_terms"]["outcome"] == expected
+            assert r == pytest.approx(sum(info["reward_terms"].values()), rel=0, abs=1e-12)
+
+
+@pytest.mark.parametrize("env_id", [LANDMARK, TEXTBOOK])
+def test_the_outcome_term_rewards_a_right_belief_and_charges_a_confidently_wrong_one(
+    env_id: str,
+) -> None:
+    """The same episodes, once with the default success tolerances (the EKF ends right) and
+    once with tolerances no belief meets (every confident end is a false convergence)."""
+    outcomes = {}
+    for tol in (0.3, 1e-9):
+        env = gym.make(env_id, outcome_reward=2.5, terminate_when_localized=True,
+                       success_position_tol=tol)
+        rng = np.random.default_rng(6)
+        outcomes[tol] = []
+        for seed in range(4):
+            *_, (_, _, terminated, _, info) = run_episode(env, seed, rng)
+            if terminated:
+                outcomes[tol].append(info["reward_terms"]["outcome"])
+    assert outcomes[0.3] and outcomes[1e-9]  # the episodes do end confident
+    assert 2.5 in outcomes[0.3]
+    assert set(outcomes[1e-9]) == {-2.5}
 
 
 def uncertainty(env: gym.Env, reward: str, info: dict[str, Any]) -> float:
@@ -272,6 +310,9 @@ def test_rejected_action_leaves_the_episode_unchanged(action_type: str) -> None:
         ({"n_landmarks": (8, 20)}, "max_landmarks=15"),
         ({"start_pose": (1.0, 2.0)}, "start_pose must be three finite numbers"),
         ({"initial_belief_std": (0.0, 1.0, 1.0)}, "initial_belief_std must be a finite number > 0"),
+        ({"outcome_reward": -1.0}, "outcome_reward must be a finite number >= 0"),
+        ({"outcome_reward": 1.0, "terminate_when_localized": False},
+         "outcome_reward .* needs terminate_when_localized=True"),
     ],
     ids=lambda v: str(v)[:40] if isinstance(v, dict) else None,
 )

@@ -96,6 +96,24 @@ def test_native_equals_single_envs(env_id: str, action_type: str) -> None:
     sync.close()
 
 
+def test_the_outcome_reward_of_the_batched_kernel_is_the_single_envs() -> None:
+    """Episodes long enough to end confident: the terminal rewards carry the outcome term."""
+    kwargs = {"outcome_reward": 3.0, "max_episode_steps": 60}
+    native = gym.make_vec("ActiveLoc/LandmarkEKF-v0", N_ENVS,
+                          vectorization_mode="vector_entry_point", **kwargs)
+    sync = gym.make_vec("ActiveLoc/LandmarkEKF-v0", N_ENVS, vectorization_mode="sync", **kwargs)
+    assert_same(native.reset(seed=7), sync.reset(seed=7))
+    rng = np.random.default_rng(7)
+    outcomes = []
+    for _ in range(120):
+        actions = vector_actions(native.action_space, rng)
+        result = native.step(actions)
+        assert_same(result, sync.step(actions))
+        terms = result[4]["reward_terms"]["outcome"]
+        outcomes += terms[result[2]].tolist()
+    assert outcomes and set(outcomes) <= {3.0, -3.0}
+
+
 @pytest.mark.parametrize("env_id", ["ActiveLoc/LandmarkEKF-v0", "ActiveLoc/GridMarkov-v0"])
 def test_same_step_autoreset_reports_final_obs_and_info(env_id: str) -> None:
     native, sync = make_pair(env_id, AutoresetMode.SAME_STEP)

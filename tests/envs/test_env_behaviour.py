@@ -137,16 +137,19 @@ def test_the_outcome_term_is_paid_only_on_the_terminal_step_signed_by_success(
             assert r == pytest.approx(sum(info["reward_terms"].values()), rel=0, abs=1e-12)
 
 
-@pytest.mark.parametrize("env_id", [LANDMARK, TEXTBOOK])
+@pytest.mark.parametrize(
+    "env_id", [LANDMARK, TEXTBOOK, "ActiveLoc/LandmarkMCL-v0", "ActiveLoc/GridMarkov-v0"]
+)
 def test_the_outcome_term_rewards_a_right_belief_and_charges_a_confidently_wrong_one(
     env_id: str,
 ) -> None:
     """The same episodes, once with the default success tolerances (the EKF ends right) and
-    once with tolerances no belief meets (every confident end is a false convergence)."""
+    once with tolerances no belief meets (every confident end is a false convergence); the
+    EKF kernel's term and the particle and grid cores'."""
     outcomes = {}
     for tol in (0.3, 1e-9):
         env = gym.make(env_id, outcome_reward=2.5, terminate_when_localized=True,
-                       success_position_tol=tol)
+                       success_position_tol=tol, max_episode_steps=100)
         rng = np.random.default_rng(6)
         outcomes[tol] = []
         for seed in range(4):

@@ -30,8 +30,10 @@ class GreedyInfoGainAgent:
     (within ``1e-9`` nats) are broken at random with the agent's own Generator.
 
     Being myopic it can dither: where no single action is informative every action ties, and
-    it may turn left and right in turn. :class:`~active_loc.agents.horizon.HorizonPlannerAgent`
-    looks further.
+    it may turn left and right in turn. Where an action "stay" exists and the filter takes each
+    repeated scan as new evidence (MCL on a grid map), staying adds no motion noise and so often
+    scores best: the belief sharpens around the modes it has without telling them apart.
+    :class:`~active_loc.agents.horizon.HorizonPlannerAgent` looks further.
     """
 
     def __init__(self, n_hypotheses: int = 4, max_particles: int = 500,

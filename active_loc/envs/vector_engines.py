@@ -170,9 +170,7 @@ class BatchedLandmarkEngine:
         core = self.core
         self._write_actions(actions, active)
         rngs: list[np.random.Generator] = self.rngs  # type: ignore[assignment]
-        if self.workers > 1:
-            numba.set_num_threads(self.workers)  # per calling thread: set before each call
-        bad = core.step(rngs, active, parallel=self.workers > 1)
+        bad = core.step(rngs, active, threads=self.workers)
         if bad >= 0:  # the kernel checks every action before it moves any member
             raise ValueError(
                 f"the action of sub-env {bad} contains NaN or inf: {np.asarray(actions)[bad]!r}"

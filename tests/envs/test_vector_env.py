@@ -15,6 +15,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 from active_loc.envs import ActiveLocalizationVectorEnv
+from active_loc.envs.landmark_core import PRANGE_MIN_MEMBERS
 from active_loc.envs.vector_engines import BatchedLandmarkEngine, MemberEngine
 from tests.envs.test_envs import CASES, ENV_IDS, vector_actions
 
@@ -26,15 +27,16 @@ BATCHED_IDS = {"ActiveLoc/Textbook-v0", "ActiveLoc/LandmarkEKF-v0"}
 
 
 def make_pair(
-    env_id: str, mode: AutoresetMode, **kwargs: Any
+    env_id: str, mode: AutoresetMode, n: int = N_ENVS, **kwargs: Any
 ) -> tuple[gym.vector.VectorEnv, gym.vector.VectorEnv]:
-    """(native, gymnasium's SyncVectorEnv) with the same kwargs and autoreset mode."""
+    """(native, gymnasium's SyncVectorEnv) of n sub-envs with the same kwargs and autoreset
+    mode."""
     native = gym.make_vec(
-        env_id, N_ENVS, vectorization_mode="vector_entry_point", autoreset_mode=mode,
+        env_id, n, vectorization_mode="vector_entry_point", autoreset_mode=mode,
         max_episode_steps=LIMIT, **kwargs,
     )
     sync = gym.make_vec(
-        env_id, N_ENVS, vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode},
+        env_id, n, vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode},
         max_episode_steps=LIMIT, **kwargs,
     )
     return native, sync
@@ -94,6 +96,17 @@ def test_native_equals_single_envs(env_id: str, action_type: str) -> None:
     assert ended >= N_ENVS  # autoreset was exercised
     native.close()
     sync.close()
+
+
+@pytest.mark.parametrize("action_type", ["continuous", "discrete"])
+@pytest.mark.parametrize("env_id", sorted(BATCHED_IDS))
+def test_the_prange_kernel_on_one_thread_is_the_single_envs(env_id: str, action_type: str) -> None:
+    """From PRANGE_MIN_MEMBERS sub-envs on, the batch steps in the prange kernel even with one
+    worker; the single envs step in the plain loop: the same results."""
+    n = PRANGE_MIN_MEMBERS + 1
+    native, sync = make_pair(env_id, AutoresetMode.NEXT_STEP, n=n, action_type=action_type)
+    assert native.engine.workers == 1  # too few sub-envs for a second thread
+    assert run_pair(native, sync, 3 * LIMIT) >= n
 
 
 def test_the_outcome_reward_of_the_batched_kernel_is_the_single_envs() -> None:

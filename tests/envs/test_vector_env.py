@@ -7,6 +7,7 @@ observations, rewards, flags and infos (values and dtypes), exactly.
 
 from __future__ import annotations
 
+import multiprocessing
 from typing import Any
 
 import gymnasium as gym
@@ -107,6 +108,39 @@ def test_the_prange_kernel_on_one_thread_is_the_single_envs(env_id: str, action_
     native, sync = make_pair(env_id, AutoresetMode.NEXT_STEP, n=n, action_type=action_type)
     assert native.engine.workers == 1  # too few sub-envs for a second thread
     assert run_pair(native, sync, 3 * LIMIT) >= n
+
+
+def _batched_trace(seed: int) -> list[np.ndarray]:
+    """Observations and rewards of 8 LandmarkEKF sub-envs (the prange kernel) for 5 steps."""
+    envs = gym.make_vec("ActiveLoc/LandmarkEKF-v0", 8, vectorization_mode="vector_entry_point")
+    trace = [envs.reset(seed=seed)[0]]
+    rng = np.random.default_rng(seed)
+    for _ in range(5):
+        obs, rewards, *_ = envs.step(vector_actions(envs.action_space, rng))
+        trace += [obs, rewards]
+    return trace
+
+
+def _child_trace(connection: Any) -> None:
+    connection.send(_batched_trace(4))
+
+
+@pytest.mark.skipif("fork" not in multiprocessing.get_all_start_methods(), reason="no fork")
+def test_a_child_forked_after_the_prange_kernel_ran_still_steps() -> None:
+    """GNU OpenMP kills a forked child that launches a parallel kernel once its parent has:
+    the child steps in the plain loop instead, with the same results."""
+    parent = _batched_trace(4)  # launches the prange kernel here
+    context = multiprocessing.get_context("fork")
+    receiver, sender = context.Pipe(duplex=False)
+    child = context.Process(target=_child_trace, args=(sender,))
+    child.start()
+    sender.close()  # the child's end only: if the child dies, recv() raises EOFError
+    assert receiver.poll(120)
+    child_trace = receiver.recv()
+    child.join(60)
+    assert child.exitcode == 0
+    for a, b in zip(parent, child_trace, strict=True):
+        assert np.array_equal(a, b)
 
 
 def test_the_outcome_reward_of_the_batched_kernel_is_the_single_envs() -> None:

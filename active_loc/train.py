@@ -56,6 +56,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
 import active_loc
 from active_loc.agents.sb3 import ALGORITHMS, CONFIG_FILE, MODEL_FILE, algorithm_class
+from active_loc.envs.action_repeat import ActionRepeat
 from active_loc.envs.localization_env import ActiveLocalizationEnv
 from active_loc.envs.registration import ENTRY_POINT, MAZE_ID
 from active_loc.envs.vector_engines import batched_core
@@ -120,7 +121,8 @@ class TrainArgs:
     algo: Algo = "ppo"
     """PPO, A2C, DQN (Discrete actions), SAC (Box actions); RecurrentPPO (sb3-contrib)."""
     total_steps: int = 200_000
-    """Environment steps to train for (summed over the vectorized envs)."""
+    """Agent steps to train for (summed over the vectorized envs): env steps, or with
+    --action-repeat k, decisions of up to k env steps each."""
     n_envs: int = 8
     """Parallel training envs."""
     seed: int = 0
@@ -141,6 +143,11 @@ class TrainArgs:
     step for the EKF landmark ids, worker threads for the others (one Monitor CSV for all
     training envs); auto: native where it is faster (EKF landmark ids from 8 envs on, MCL and
     grid ids from 2 on, given 2 cores), dummy otherwise."""
+    action_repeat: int = 1
+    """Hold each action for this many env steps (the agent decides every k steps; the rewards
+    are summed). The evaluation agent holds its actions the same way (SB3Agent reads it from
+    config.json). Needs vec_env dummy or subproc; auto picks subproc where it would pick
+    native for the threads, else dummy."""
     device: str = "cpu"
     """Torch device."""
     torch_threads: int = 1
@@ -331,6 +338,7 @@ def check_args(args: TrainArgs) -> None:
     checks = [
         ("total_steps", args.total_steps >= 1, ">= 1"),
         ("n_envs", args.n_envs >= 1, ">= 1"),
+        ("action_repeat", args.action_repeat >= 1, ">= 1"),
         ("eval_freq", args.eval_freq >= 0, ">= 0"),
         ("eval_episodes", args.eval_episodes >= 1, ">= 1"),
         ("checkpoint_freq", args.checkpoint_freq >= 0, ">= 0"),
@@ -577,7 +585,8 @@ THREADED_BELIEFS = ("mcl", "grid")
 
 
 def resolve_vec_env(
-    vec_env: str, env_id: str, env_kwargs: dict[str, Any], n_envs: int = NATIVE_MIN_ENVS
+    vec_env: str, env_id: str, env_kwargs: dict[str, Any], n_envs: int = NATIVE_MIN_ENVS,
+    action_repeat: int = 1,
 ) -> str:
     """``"auto"`` resolved to ``"native"`` where the package's vector env is faster, else
     ``"dummy"``:
@@ -588,23 +597,43 @@ def resolve_vec_env(
     * the particle and grid filters from 2 envs on, on a machine with 2 cores or more: their
       worker threads step two envs at once (PPO on ``LandmarkMCL-v0`` with 8 envs: 141
       steps/s against 81 with ``DummyVecEnv``). See docs/performance.md.
+
+    The native env steps every sub-env at every call, so it cannot hold actions: with
+    ``action_repeat`` > 1, ``"native"`` is an error and ``"auto"`` picks ``"subproc"`` (two
+    cores by processes) where it would have picked native for the threads, else ``"dummy"``.
     """
+    if action_repeat > 1 and vec_env == "native":
+        raise TrainConfigError(
+            f"vec_env native cannot hold actions; use dummy or subproc with action_repeat "
+            f"{action_repeat}"
+        )
     if vec_env != "auto":
         return vec_env
-    if not env_id.startswith("ActiveLoc/") or n_envs < 2:
+    speed_up = _native_speed_up(env_id, env_kwargs, n_envs)
+    if speed_up is None:
         return "dummy"
+    if action_repeat > 1:
+        return "subproc" if speed_up == "threads" else "dummy"
+    return "native"
+
+
+def _native_speed_up(env_id: str, env_kwargs: dict[str, Any], n_envs: int) -> str | None:
+    """Why the native vector env is faster for ``n_envs`` of this env: ``"kernel"`` (one
+    batched kernel call), ``"threads"`` (worker threads), or None where it is not."""
+    if not env_id.startswith("ActiveLoc/") or n_envs < 2:
+        return None
     env = make_env(env_id, **env_kwargs)
     try:
         unwrapped = env.unwrapped
         if batched_core(unwrapped):
-            return "native" if n_envs >= NATIVE_MIN_ENVS else "dummy"
+            return "kernel" if n_envs >= NATIVE_MIN_ENVS else None
         # the maze's grid belief is too cheap a step for threads to pay off
         threaded = (
             isinstance(unwrapped, ActiveLocalizationEnv)
             and unwrapped.config.belief in THREADED_BELIEFS
             and (os.cpu_count() or 1) >= 2
         )
-        return "native" if threaded else "dummy"
+        return "threads" if threaded else None
     finally:
         env.close()
 
@@ -628,14 +657,18 @@ def make_train_envs(
         return vec_env, eval_env
     vec_env_cls = SubprocVecEnv if vec_mode == "subproc" else DummyVecEnv
     env_fn = partial(make_env, args.env)
-    monitor_kwargs = {"info_keywords": info_keywords}
+    # make_vec_env wraps Monitor first, so its episode lengths count env steps
+    common = {
+        "env_kwargs": env_kwargs, "monitor_kwargs": {"info_keywords": info_keywords},
+        "vec_env_cls": vec_env_cls,
+        "wrapper_class": ActionRepeat if args.action_repeat > 1 else None,
+        "wrapper_kwargs": {"repeat": args.action_repeat},
+    }
     vec_env = make_vec_env(
-        env_fn, n_envs=args.n_envs, seed=args.seed, env_kwargs=env_kwargs,
-        monitor_dir=str(out / "monitor"), monitor_kwargs=monitor_kwargs, vec_env_cls=vec_env_cls,
+        env_fn, n_envs=args.n_envs, seed=args.seed, monitor_dir=str(out / "monitor"), **common
     )
     eval_env = make_vec_env(
-        env_fn, n_envs=1, seed=eval_seed, env_kwargs=env_kwargs,
-        monitor_dir=str(out / "eval"), monitor_kwargs=monitor_kwargs, vec_env_cls=vec_env_cls,
+        env_fn, n_envs=1, seed=eval_seed, monitor_dir=str(out / "eval"), **common
     )
     return vec_env, eval_env
 
@@ -650,7 +683,9 @@ def train(args: TrainArgs) -> Path:
     hyper = resolve_hyperparameters(args)
     algo_cls = algorithm_class(args.algo)
     out = args.out if args.out is not None else default_out(args)
-    vec_mode = resolve_vec_env(args.vec_env, args.env, env_kwargs, args.n_envs)
+    vec_mode = resolve_vec_env(
+        args.vec_env, args.env, env_kwargs, args.n_envs, args.action_repeat
+    )
 
     # seeding: python, numpy and torch here; the algorithm (seed), the training envs
     # (seed + i) and the eval env (seed + EVAL_SEED_OFFSET, replayed at every evaluation)

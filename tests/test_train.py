@@ -171,6 +171,9 @@ def test_sac_on_the_discrete_maze_is_a_clear_error_on_the_command_line(
         ({"env": "ActiveLoc/Nope-v0"}, "unknown env id"),
         ({"env": "ActiveLoc/LandmarkEKF-v0", "policy": "cnn"}, "policy 'cnn' needs an image"),
         ({"total_steps": 0}, "total_steps must be >= 1"),
+        ({"action_repeat": 0}, "action_repeat must be >= 1"),
+        ({"env": "ActiveLoc/LandmarkEKF-v0", "action_repeat": 2, "vec_env": "native"},
+         "vec_env native cannot hold actions"),
     ],
 )
 def test_bad_arguments_raise_clear_errors(
@@ -250,3 +253,53 @@ def test_auto_vec_env_is_native_where_it_is_faster() -> None:
     assert resolve_vec_env("auto", "ActiveLoc/Maze-v0", {"size": 7}) == "dummy"
     assert resolve_vec_env("auto", "CartPole-v1", {}) == "dummy"
     assert resolve_vec_env("subproc", "ActiveLoc/LandmarkEKF-v0", {}) == "subproc"
+
+
+def test_auto_vec_env_with_held_actions_uses_processes_for_the_threads() -> None:
+    from active_loc.train import resolve_vec_env
+
+    processes = "subproc" if (os.cpu_count() or 1) >= 2 else "dummy"
+    assert resolve_vec_env("auto", "ActiveLoc/GridMCL-v0", {}, 8, action_repeat=5) == processes
+    assert resolve_vec_env("auto", "ActiveLoc/LandmarkEKF-v0", {}, 64, action_repeat=5) == "dummy"
+    assert resolve_vec_env("auto", "ActiveLoc/Maze-v0", {"size": 7}, 8, action_repeat=2) == "dummy"
+    assert resolve_vec_env("dummy", "ActiveLoc/GridMCL-v0", {}, 8, action_repeat=5) == "dummy"
+
+
+def test_a_run_with_action_repeat_holds_actions_in_training_and_in_the_agent(
+    tmp_path: Path,
+) -> None:
+    args = TrainArgs(env="ActiveLoc/LandmarkEKF-v0", env_kwargs='{"action_type": "discrete"}',
+                     algo="ppo", total_steps=128, n_steps=32, action_repeat=3, out=tmp_path,
+                     **TINY)
+    out = train(args)
+    config = json.loads((out / "config.json").read_text())
+    assert config["args"]["action_repeat"] == 3
+    assert config["resolved"]["vec_env"] == "dummy"
+    # the Monitor sits under the repeat, so it counts env steps: an episode longer than the
+    # 64 decisions each training env took and the 67 an evaluation episode can take
+    lengths = [
+        int(row.split(",")[1]) for folder in ("monitor", "eval") for csv in (out / folder).glob(
+            "*.monitor.csv") for row in csv.read_text().splitlines()[2:]
+    ]
+    assert max(lengths) > 67
+
+    agent = SB3Agent.load(out)
+    assert agent.action_repeat == 3
+    asked = []
+    predict = agent.model.predict
+    agent.model.predict = lambda obs, **kw: (asked.append(1), predict(obs, **kw))[1]
+    env = gym.make("ActiveLoc/LandmarkEKF-v0", action_type="discrete")
+    obs, _ = env.reset(seed=0)
+    actions = []
+    for _ in range(7):
+        actions.append(agent.act(obs, env.unwrapped.planner_view()))
+        obs, *_ = env.step(actions[-1])
+    assert len(asked) == 3  # at steps 0, 3 and 6
+    assert actions[0] == actions[1] == actions[2] and actions[3] == actions[4] == actions[5]
+    obs, _ = env.reset(seed=1)  # a new episode asks at once
+    agent.act(obs, env.unwrapped.planner_view())
+    assert len(asked) == 4
+    env.close()
+    assert SB3Agent(agent.model).action_repeat == 1
+    with pytest.raises(ValueError, match="action_repeat must be an integer >= 1"):
+        SB3Agent(agent.model, action_repeat=0)

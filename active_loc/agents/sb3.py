@@ -55,16 +55,26 @@ def model_path(path: str | os.PathLike[str]) -> Path:
     return p
 
 
-def config_algorithm(model_file: Path) -> str | None:
-    """The ``algo`` recorded in the ``config.json`` of the run the model belongs to: next to
-    the model, or one folder up (checkpoints/, eval/best_model.zip). None if there is none."""
+def run_config_args(model_file: Path) -> dict[str, Any]:
+    """The ``args`` recorded in the ``config.json`` of the run the model belongs to: next to
+    the model, or one folder up (checkpoints/, eval/best_model.zip). Empty if there is none."""
     for folder in (model_file.parent, model_file.parent.parent):
         config = folder / CONFIG_FILE
         if config.is_file():
-            algo = json.loads(config.read_text()).get("args", {}).get("algo")
-            if algo in ALGORITHMS:
-                return str(algo)
-    return None
+            return dict(json.loads(config.read_text()).get("args", {}))
+    return {}
+
+
+def config_algorithm(model_file: Path) -> str | None:
+    """The ``algo`` of the model's run (see :func:`run_config_args`), or None."""
+    algo = run_config_args(model_file).get("algo")
+    return str(algo) if algo in ALGORITHMS else None
+
+
+def configured_action_repeat(model_file: Path) -> int:
+    """The ``action_repeat`` the model's run trained with (see :func:`run_config_args`); 1 for
+    runs that do not record one."""
+    return int(run_config_args(model_file).get("action_repeat", 1))
 
 
 def load_model(path: str | os.PathLike[str], device: str = "cpu") -> Any:
@@ -95,6 +105,9 @@ class SB3Agent:
         model_or_path: a model object, or the path of a saved model (see :meth:`load`).
         deterministic: take the policy's most likely action instead of sampling.
         device: torch device to load a saved model on.
+        action_repeat: hold each action for this many steps, as the model was trained
+            (``train.py --action-repeat``): the policy is asked at steps 0, k, 2k, ... of an
+            episode. :meth:`load` reads it from the run's ``config.json``.
 
     The view (``env.unwrapped.planner_view()``) is not used to choose actions; the policy sees
     only the observation. For recurrent policies (RecurrentPPO) the agent carries the LSTM
@@ -107,10 +120,18 @@ class SB3Agent:
     """
 
     def __init__(
-        self, model_or_path: Any, deterministic: bool = True, device: str = "cpu"
+        self, model_or_path: Any, deterministic: bool = True, device: str = "cpu",
+        action_repeat: int | None = None,
     ) -> None:
         if isinstance(model_or_path, (str, os.PathLike)):
+            if action_repeat is None:
+                action_repeat = configured_action_repeat(model_path(model_or_path))
             model_or_path = load_model(model_or_path, device=device)
+        action_repeat = 1 if action_repeat is None else action_repeat
+        if isinstance(action_repeat, bool) or not isinstance(action_repeat, int) or (
+            action_repeat < 1
+        ):
+            raise ValueError(f"action_repeat must be an integer >= 1, got {action_repeat!r}")
         if not hasattr(model_or_path, "predict"):
             raise TypeError(
                 f"model_or_path must be a stable-baselines3 model or a path, got "
@@ -120,8 +141,11 @@ class SB3Agent:
         self.deterministic = deterministic
         self.action_space: spaces.Space = self.model.action_space
         self.recurrent = hasattr(self.model.policy, "lstm_actor")
+        self.action_repeat = action_repeat
         self._state: Any = None
         self._episode_start = True
+        self._held: Any = None  # the action being held
+        self._steps = 0  # steps taken in this episode
 
     @classmethod
     def load(
@@ -129,18 +153,30 @@ class SB3Agent:
     ) -> SB3Agent:
         """Load a model saved by ``python train.py``: ``path`` is the run folder, its
         ``model.zip``, or any other saved model of the run (a checkpoint, the best model). The
-        algorithm class comes from the run's ``config.json``; without one, PPO, A2C, DQN, SAC
-        and RecurrentPPO are tried in turn."""
-        return cls(load_model(path, device=device), deterministic=deterministic)
+        algorithm class and the action repeat come from the run's ``config.json``; without
+        one, PPO, A2C, DQN, SAC and RecurrentPPO are tried in turn, and actions are not held."""
+        return cls(path, deterministic=deterministic, device=device)
 
     def reset(self) -> None:
-        """Forget the recurrent state: the next action starts a new episode."""
+        """Forget the recurrent state and the held action: the next action starts a new
+        episode."""
         self._state = None
         self._episode_start = True
+        self._held = None
+        self._steps = 0
 
     def act(self, observation: Any, view: Any = None) -> Any:
         if getattr(view, "step", None) == 0:
             self.reset()
+        if self._steps % self.action_repeat != 0:
+            self._steps += 1
+            return self._held
+        self._steps += 1
+        self._held = self._decide(observation)
+        return self._held
+
+    def _decide(self, observation: Any) -> Any:
+        """The policy's action for ``observation``, in the env's format."""
         if self.recurrent:
             action, self._state = self.model.predict(
                 observation,

@@ -777,7 +777,7 @@ def train(args: TrainArgs) -> Path:
     config_file.write_text(json.dumps(config, indent=2) + "\n")
 
     reason = " (stopped by the time limit)" if stopped else ""
-    held = f" of {args.action_repeat} env steps each" if args.action_repeat > 1 else ""
+    held = f" of up to {args.action_repeat} env steps each" if args.action_repeat > 1 else ""
     print(f"trained {model.num_timesteps} steps{held} in {seconds / 60:.1f} min{reason}; "
           f"{100 * timer.env_seconds / seconds:.1f}% of it in the training envs")
     if evaluation is not None:

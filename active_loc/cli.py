@@ -148,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
     render = sub.add_parser("render", help="write one episode as a GIF or MP4")
     render.add_argument("--env", default="ActiveLoc/Textbook-v0")
     render.add_argument("--agent", default="textbook",
-                        help=f"one of {', '.join(AGENT_NAMES)} or sb3:PATH")
+                        help=f"one of {', '.join(AGENT_NAMES)}, sb3:PATH or sb3-sample:PATH")
     render.add_argument("--out", type=Path, default=Path("reports/episode.gif"))
     render.add_argument("--seed", type=int, default=0)
     render.add_argument("--fps", type=int, default=10)
@@ -159,7 +159,8 @@ def main(argv: list[str] | None = None) -> int:
     evaluate.add_argument("--env-kwargs", default="{}",
                           help="JSON object of gymnasium.make keyword arguments")
     evaluate.add_argument("--agents", required=True,
-                          help="comma-separated: random,passive,greedy,horizon,sb3:PATH,...")
+                          help="comma-separated: random,passive,greedy,horizon,sb3:PATH,"
+                               "sb3-sample:PATH,...")
     evaluate.add_argument("--episodes", type=int, default=100, help="episodes per agent")
     evaluate.add_argument("--seed", type=int, default=0, help="episode i is reset with seed + i")
     evaluate.add_argument("--out", type=Path, default=Path("reports/eval"))

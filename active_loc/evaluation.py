@@ -379,13 +379,15 @@ def reseed_agent(agent: Any, episode_seed: int) -> None:
     """Start ``agent`` afresh for the episode reset with ``episode_seed``.
 
     An agent with an ``rng`` attribute holding a numpy Generator (``RandomAgent``,
-    ``GreedyInfoGainAgent``, ``HorizonPlannerAgent``) gets :func:`agent_rng` in its place, and
+    ``GreedyInfoGainAgent``, ``HorizonPlannerAgent``, ``SB3Agent``, which samples the actions
+    of PPO and A2C policies with it) gets :func:`agent_rng` in its place, and
     an agent with a ``reset()`` method (``SB3Agent``) has it called. The package's agents keep
     no other state from one episode to the next (they forget their per-episode memory when
     ``view.step == 0``), so an agent reseeded this way acts exactly as a new one would, and an
     episode's record depends only on the agent, the env and the episode's seed, not on which
     episodes ran before it, in which process. Randomness kept elsewhere (torch's global
-    generator of a stochastic SB3 policy, say) is not reseeded.
+    generator, with which SB3 samples the actions of other stochastic policies) is not
+    reseeded.
     """
     if isinstance(getattr(agent, "rng", None), np.random.Generator):
         agent.rng = agent_rng(episode_seed)

@@ -303,3 +303,47 @@ def test_a_run_with_action_repeat_holds_actions_in_training_and_in_the_agent(
     assert SB3Agent(agent.model).action_repeat == 1
     with pytest.raises(ValueError, match="action_repeat must be an integer >= 1"):
         SB3Agent(agent.model, action_repeat=0)
+
+
+def test_a_sampling_sb3_agent_draws_from_the_policy_with_its_own_generator(
+    tmp_path: Path,
+) -> None:
+    import torch
+    from stable_baselines3 import PPO
+
+    from active_loc.agents.registry import make_agent
+    from active_loc.evaluation import run_episodes
+
+    env = gym.make("ActiveLoc/LandmarkEKF-v0", action_type="discrete")
+    model = PPO("MlpPolicy", env, n_steps=16, batch_size=16, seed=0, device="cpu",
+                policy_kwargs={"net_arch": [8]})
+    obs, _ = env.reset(seed=0)
+    view = env.unwrapped.planner_view()
+    with torch.no_grad():
+        obs_tensor, _ = model.policy.obs_to_tensor(obs)
+        probs = model.policy.get_distribution(obs_tensor).distribution.probs[0].numpy()
+    first = SB3Agent(model, deterministic=False, seed=7)
+    draws = [first.act(obs, view) for _ in range(4000)]
+    again = SB3Agent(model, deterministic=False, seed=7)
+    assert [again.act(obs, view) for _ in range(4000)] == draws  # its seed replays it
+    frequencies = np.bincount(draws, minlength=probs.size) / len(draws)
+    np.testing.assert_allclose(frequencies, probs, atol=0.03)
+    assert len(set(draws)) == probs.size  # an untrained policy spreads over every action
+
+    # through the evaluation, which reseeds the agent each episode: the records replay
+    model.save(tmp_path / "model.zip")
+    agent = make_agent(f"sb3-sample:{tmp_path / 'model.zip'}", env, seed=0)
+    assert not agent.deterministic and agent._own_sampling
+    runs = [run_episodes(env, agent, "s", range(2), 5) for _ in range(2)]
+    assert [r.row() for r in runs[0]] == [r.row() for r in runs[1]]
+    env.close()
+
+    box_env = gym.make("ActiveLoc/LandmarkEKF-v0")  # continuous actions
+    box_model = PPO("MlpPolicy", box_env, n_steps=16, batch_size=16, seed=0, device="cpu",
+                    policy_kwargs={"net_arch": [8]})
+    obs, _ = box_env.reset(seed=0)
+    box_agent = SB3Agent(box_model, deterministic=False, seed=1)
+    actions = np.array([box_agent.act(obs, None) for _ in range(2000)])
+    assert actions.shape == (2000, 2) and actions.dtype == np.float32
+    assert np.all(actions >= -1.0) and np.all(actions <= 1.0) and actions.std(axis=0).min() > 0.3
+    box_env.close()

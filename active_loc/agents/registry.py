@@ -34,16 +34,19 @@ def make_agent(spec: str, env: gym.Env, seed: int = 0) -> Any:
 
     ``"passive"`` is the env's passive baseline: the exercise's controls on ``Textbook-v0``, a
     wall follower on grid maps, a constant-curvature wanderer on landmark maps. ``"sb3:PATH"``
-    loads a saved stable-baselines3 model.
+    loads a saved stable-baselines3 model that takes its most likely action;
+    ``"sb3-sample:PATH"`` one that samples its actions (with the agent's seeded Generator for
+    PPO and A2C).
 
     Raises:
         ValueError: an unknown name, or an agent that cannot drive this env.
     """
     kind = _kind(env)
-    if spec.startswith("sb3:"):
+    if spec.startswith(("sb3:", "sb3-sample:")):
         from active_loc.agents.sb3 import SB3Agent
 
-        return SB3Agent.load(spec[4:])
+        kind_of_sb3, path = spec.split(":", 1)
+        return SB3Agent.load(path, deterministic=kind_of_sb3 == "sb3", seed=seed)
     if spec == "passive":
         if kind == "maze":
             raise ValueError("no passive agent for Maze-v0: its only reading, the depth, "
@@ -67,4 +70,6 @@ def make_agent(spec: str, env: gym.Env, seed: int = 0) -> Any:
             raise ValueError("agent 'wall_follower' needs a grid env with a lidar")
         return {"textbook": TextbookAgent, "wanderer": WandererAgent,
                 "wall_follower": WallFollowerAgent}[spec]()
-    raise ValueError(f"unknown agent {spec!r}: one of {AGENT_NAMES} or 'sb3:PATH'")
+    raise ValueError(
+        f"unknown agent {spec!r}: one of {AGENT_NAMES}, 'sb3:PATH' or 'sb3-sample:PATH'"
+    )

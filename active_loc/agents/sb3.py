@@ -105,6 +105,10 @@ class SB3Agent:
         model_or_path: a model object, or the path of a saved model (see :meth:`load`).
         deterministic: take the policy's most likely action instead of sampling.
         device: torch device to load a saved model on.
+        seed: seed of the agent's Generator ``rng``, which samples the actions of PPO and A2C
+            policies when ``deterministic`` is False (the evaluation gives it a new one each
+            episode, so a sampled episode replays exactly). Other policies sample with SB3's
+            own ``predict``, from torch's global generator.
         action_repeat: hold each action for this many steps, as the model was trained
             (``train.py --action-repeat``): the policy is asked at steps 0, k, 2k, ... of an
             episode. :meth:`load` reads it from the run's ``config.json``.
@@ -121,7 +125,7 @@ class SB3Agent:
 
     def __init__(
         self, model_or_path: Any, deterministic: bool = True, device: str = "cpu",
-        action_repeat: int | None = None,
+        action_repeat: int | None = None, seed: int | None = None,
     ) -> None:
         if isinstance(model_or_path, (str, os.PathLike)):
             if action_repeat is None:
@@ -142,6 +146,10 @@ class SB3Agent:
         self.action_space: spaces.Space = self.model.action_space
         self.recurrent = hasattr(self.model.policy, "lstm_actor")
         self.action_repeat = action_repeat
+        self.rng = np.random.default_rng(seed)
+        self._own_sampling = not deterministic and _samples_itself(
+            self.model.policy, self.action_space
+        )
         self._state: Any = None
         self._episode_start = True
         self._held: Any = None  # the action being held
@@ -149,13 +157,14 @@ class SB3Agent:
 
     @classmethod
     def load(
-        cls, path: str | os.PathLike[str], deterministic: bool = True, device: str = "cpu"
+        cls, path: str | os.PathLike[str], deterministic: bool = True, device: str = "cpu",
+        seed: int | None = None,
     ) -> SB3Agent:
         """Load a model saved by ``python train.py``: ``path`` is the run folder, its
         ``model.zip``, or any other saved model of the run (a checkpoint, the best model). The
         algorithm class and the action repeat come from the run's ``config.json``; without
         one, PPO, A2C, DQN, SAC and RecurrentPPO are tried in turn, and actions are not held."""
-        return cls(path, deterministic=deterministic, device=device)
+        return cls(path, deterministic=deterministic, device=device, seed=seed)
 
     def reset(self) -> None:
         """Forget the recurrent state and the held action: the next action starts a new
@@ -185,9 +194,42 @@ class SB3Agent:
                 deterministic=self.deterministic,
             )
             self._episode_start = False
+        elif self._own_sampling:
+            action = self._sample(observation)
         else:
             action, _ = self.model.predict(observation, deterministic=self.deterministic)
         space = self.action_space
         if isinstance(space, spaces.Discrete):
             return int(np.asarray(action).reshape(-1)[0])
         return np.asarray(action, dtype=space.dtype).reshape(space.shape)
+
+    def _sample(self, observation: Any) -> np.ndarray:
+        """An action drawn with :attr:`rng` from the policy's distribution at
+        ``observation``: a category of a Discrete space, or a diagonal Gaussian draw clipped
+        to a Box, as SB3's ``predict`` clips it."""
+        import torch
+
+        policy = self.model.policy
+        obs, _ = policy.obs_to_tensor(observation)
+        with torch.no_grad():
+            distribution = policy.get_distribution(obs).distribution
+        space = self.action_space
+        if isinstance(space, spaces.Discrete):
+            probs = distribution.probs.reshape(-1).cpu().numpy().astype(np.float64)
+            return np.asarray(self.rng.choice(probs.size, p=probs / probs.sum()))
+        mean = distribution.mean.reshape(space.shape).cpu().numpy()
+        std = distribution.stddev.reshape(space.shape).cpu().numpy()
+        return np.clip(mean + std * self.rng.standard_normal(space.shape), space.low, space.high)
+
+
+def _samples_itself(policy: Any, space: spaces.Space) -> bool:
+    """Whether :class:`SB3Agent` draws this policy's actions with its own Generator: PPO and
+    A2C policies (not recurrent) over a Discrete space or an unsquashed Box."""
+    from stable_baselines3.common.policies import ActorCriticPolicy
+
+    return (
+        isinstance(policy, ActorCriticPolicy)
+        and not hasattr(policy, "lstm_actor")
+        and (isinstance(space, spaces.Discrete)
+             or (isinstance(space, spaces.Box) and not policy.squash_output))
+    )

@@ -105,13 +105,13 @@ class SB3Agent:
         model_or_path: a model object, or the path of a saved model (see :meth:`load`).
         deterministic: take the policy's most likely action instead of sampling.
         device: torch device to load a saved model on.
+        action_repeat: hold each action for this many steps, as the model was trained
+            (``train.py --action-repeat``): the policy is asked at steps 0, k, 2k, ... of an
+            episode. :meth:`load` reads it from the run's ``config.json``.
         seed: seed of the agent's Generator ``rng``, which samples the actions of PPO and A2C
             policies when ``deterministic`` is False (the evaluation gives it a new one each
             episode, so a sampled episode replays exactly). Other policies sample with SB3's
             own ``predict``, from torch's global generator.
-        action_repeat: hold each action for this many steps, as the model was trained
-            (``train.py --action-repeat``): the policy is asked at steps 0, k, 2k, ... of an
-            episode. :meth:`load` reads it from the run's ``config.json``.
 
     The view (``env.unwrapped.planner_view()``) is not used to choose actions; the policy sees
     only the observation. For recurrent policies (RecurrentPPO) the agent carries the LSTM

@@ -128,9 +128,10 @@ class SB3Agent:
         action_repeat: int | None = None, seed: int | None = None,
     ) -> None:
         if isinstance(model_or_path, (str, os.PathLike)):
+            file = model_path(model_or_path)
             if action_repeat is None:
-                action_repeat = configured_action_repeat(model_path(model_or_path))
-            model_or_path = load_model(model_or_path, device=device)
+                action_repeat = configured_action_repeat(file)
+            model_or_path = load_model(file, device=device)
         action_repeat = 1 if action_repeat is None else action_repeat
         if isinstance(action_repeat, bool) or not isinstance(action_repeat, int) or (
             action_repeat < 1
@@ -177,11 +178,9 @@ class SB3Agent:
     def act(self, observation: Any, view: Any = None) -> Any:
         if getattr(view, "step", None) == 0:
             self.reset()
-        if self._steps % self.action_repeat != 0:
-            self._steps += 1
-            return self._held
+        if self._steps % self.action_repeat == 0:
+            self._held = self._decide(observation)
         self._steps += 1
-        self._held = self._decide(observation)
         return self._held
 
     def _decide(self, observation: Any) -> Any:

@@ -1,4 +1,4 @@
-"""The ``active-loc`` command: ``active-loc train|demo|render|evaluate|envs``.
+"""The ``active-loc`` command: ``active-loc train|demo|render|evaluate|compare|envs``.
 
 * ``train``: train a stable-baselines3 agent (:mod:`active_loc.train`, the same as
   ``python train.py``; options after ``train`` go to it).
@@ -6,7 +6,10 @@
   (:mod:`active_loc.demo`; options after ``demo`` go to it).
 * ``render``: run one episode with an agent and write it as a GIF or MP4.
 * ``evaluate``: run agents on the same seeded episodes; metrics table, CSV, JSON, plots
-  (:mod:`active_loc.evaluation`); ``--ray [ADDRESS]`` runs the episodes as Ray tasks.
+  (:mod:`active_loc.evaluation`); ``--ray [ADDRESS]`` runs the episodes as Ray tasks;
+  ``--baseline NAME`` adds every agent's paired comparison with NAME
+  (:mod:`active_loc.comparison`).
+* ``compare``: the paired comparison from the ``results.csv`` files of earlier evaluations.
 * ``envs``: list the registered env ids.
 """
 
@@ -53,8 +56,8 @@ def render_episode(env_id: str, agent_name: str, out: Path, seed: int, fps: int)
     return 0
 
 
-def _fail(message: str) -> int:
-    print(f"active-loc evaluate: error: {message}", file=sys.stderr)
+def _fail(message: str, command: str = "evaluate") -> int:
+    print(f"active-loc {command}: error: {message}", file=sys.stderr)
     return 2
 
 
@@ -70,6 +73,7 @@ def evaluate_command(args: argparse.Namespace) -> int:
     import json
 
     from active_loc.agents import make_agent
+    from active_loc.comparison import outcomes_of, paired_comparison
     from active_loc.evaluation import (
         RAY_MISSING,
         evaluate,
@@ -93,6 +97,8 @@ def evaluate_command(args: argparse.Namespace) -> int:
         return _fail(f"--agents names an agent twice: {args.agents!r}")
     if args.episodes < 1:
         return _fail(f"--episodes must be >= 1, got {args.episodes}")
+    if args.baseline is not None and args.baseline not in specs:
+        return _fail(f"--baseline {args.baseline!r} is not one of --agents {specs}")
     if args.ray is not None and importlib.util.find_spec("ray") is None:
         return _fail(f"--ray: {RAY_MISSING}")
 
@@ -115,6 +121,8 @@ def evaluate_command(args: argparse.Namespace) -> int:
         records = evaluate(args.env, env_kwargs, agents, args.episodes, args.seed,
                            progress=True)
     summary = summarize(records)
+    if args.baseline is not None:
+        summary["paired"] = paired_comparison(outcomes_of(records), args.baseline)
     files = write_results(records, summary, args.out)
     written = [*files.values(), *write_plots(records, args.out)]
     if args.gif:
@@ -125,6 +133,20 @@ def evaluate_command(args: argparse.Namespace) -> int:
     print(files["md"].read_text(encoding="utf-8"))
     for path in written:
         print(f"wrote {path}")
+    return 0
+
+
+def compare_command(args: argparse.Namespace) -> int:
+    """``active-loc compare``: print the paired comparison of the agents in ``results.csv``
+    files with ``--baseline`` (agents matched by name, episodes by seed)."""
+    from active_loc.comparison import comparison_markdown, paired_comparison, read_outcomes
+
+    try:
+        outcomes = [o for path in args.results for o in read_outcomes(path)]
+        comparison = paired_comparison(outcomes, args.baseline)
+    except (OSError, ValueError) as exc:
+        return _fail(str(exc), "compare")
+    print(comparison_markdown(comparison))
     return 0
 
 
@@ -171,6 +193,18 @@ def main(argv: list[str] | None = None) -> int:
         "Ray (ray.init()); with ADDRESS, that cluster (auto, ray://HOST:10001). The results "
         "are the same as without --ray",
     )
+    evaluate.add_argument(
+        "--baseline", default=None, metavar="NAME",
+        help="one of --agents: add every other agent's paired comparison with it (McNemar's "
+        "test on success, the sign test on steps to localize) to summary.json and summary.md",
+    )
+    compare = sub.add_parser(
+        "compare", help="paired comparison with a baseline from results.csv files"
+    )
+    compare.add_argument("results", nargs="+", type=Path,
+                         help="results.csv of active-loc evaluate runs on the same env")
+    compare.add_argument("--baseline", required=True, metavar="NAME",
+                         help="the agent to compare the others with")
     args = parser.parse_args(argv)
     if args.command == "envs":
         for env_id, scenario, max_steps in active_loc.ENV_IDS:
@@ -181,6 +215,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.command == "evaluate":
         return evaluate_command(args)
+    if args.command == "compare":
+        return compare_command(args)
     return render_episode(args.env, args.agent, args.out, args.seed, args.fps)
 
 

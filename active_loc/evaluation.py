@@ -26,6 +26,9 @@ Definitions (per episode; "step" counts the actions taken, 0 being the state aft
   the episode's end. An episode in which it never holds is *not localized*: its value is None
   (an empty CSV cell, null in JSON), and it is left out of the mean and the median, which are
   therefore over the localized episodes only (null when there are none).
+* **step limit**: the most steps the env allows an episode (``env.spec.max_episode_steps``,
+  or the ``episode_length`` of an env that truncates itself, such as ``Maze-v0``); None for an
+  env without either.
 * **final entropy**: ``info["entropy"]`` (nats) at the end.
 * **position error**, **heading error**: ``info["pose_error"]`` (m) and
   ``info["heading_error"]`` (rad) at the end.
@@ -46,7 +49,13 @@ Definitions (per episode; "step" counts the actions taken, 0 being the state aft
 
 Summary per agent (:func:`summarize`, over all its episodes unless said otherwise):
 ``success_rate`` and its Wilson 95% interval ``success_ci95``;
-``steps_to_localize_mean``/``_median`` (localized episodes only); ``final_entropy_mean``;
+``steps_to_localize_mean``/``_median`` (localized episodes only);
+``steps_to_localize_restricted_mean``: the mean over *all* episodes of the steps to localize,
+an episode never localized counting as its step limit (the restricted mean time to
+localization of survival analysis; null if some episode has no step limit). The mean over the
+localized episodes alone rewards an agent that gives up on the hard episodes; this one does
+not, and it is lower for an agent that localizes sooner, more often, or both.
+``final_entropy_mean``;
 ``position_rmse`` and ``heading_rmse`` (root mean square of the final errors);
 ``false_convergence_rate``; ``collisions_mean``; ``return_mean``. Non-finite numbers are
 written to JSON as null.
@@ -66,6 +75,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
+from active_loc.comparison import comparison_markdown
 from active_loc.geometry import wrap_angle_scalar
 
 #: the columns of ``results.csv``, in order
@@ -84,6 +94,7 @@ CSV_COLUMNS: tuple[str, ...] = (
     "path_length",
     "return",
     "steps",
+    "step_limit",
     "localized",
     "terminated",
     "truncated",
@@ -96,6 +107,7 @@ SUMMARY_KEYS: tuple[str, ...] = (
     "success_ci95",
     "steps_to_localize_mean",
     "steps_to_localize_median",
+    "steps_to_localize_restricted_mean",
     "final_entropy_mean",
     "position_rmse",
     "heading_rmse",
@@ -125,6 +137,7 @@ class EpisodeRecord:
         collisions: ``info["collisions"]`` at the end.
         path_length: the true robot's path length (m).
         nees: the NEES at the end, or None for a belief without mean and covariance.
+        step_limit: the most steps the env allows an episode; None if it has no limit.
     """
 
     agent: str
@@ -144,6 +157,7 @@ class EpisodeRecord:
     collisions: int
     path_length: float
     nees: float | None
+    step_limit: int | None = None
 
     @property
     def base_seed(self) -> int:
@@ -167,6 +181,13 @@ class EpisodeRecord:
             if ok:
                 return t
         return None
+
+    @property
+    def steps_to_localize_or_limit(self) -> int | None:
+        """:attr:`steps_to_localize`, or :attr:`step_limit` if the episode never localized
+        (None if it did not and has no limit)."""
+        steps = self.steps_to_localize
+        return self.step_limit if steps is None else steps
 
     @property
     def final_entropy(self) -> float:
@@ -209,6 +230,7 @@ class EpisodeRecord:
             "path_length": self.path_length,
             "return": self.episode_return,
             "steps": self.steps,
+            "step_limit": self.step_limit,
             "localized": self.localized,
             "terminated": self.terminated,
             "truncated": self.truncated,
@@ -272,6 +294,15 @@ def nees(
     if not eigenvalues[0] > 1e-12 * eigenvalues[-1]:
         return math.nan
     return float(error @ np.linalg.solve(cov, error))
+
+
+def step_limit(env: gym.Env) -> int | None:
+    """The most steps ``env`` allows an episode: its TimeLimit (``env.spec.max_episode_steps``),
+    else the ``episode_length`` of an env that truncates itself (``Maze-v0``), else None."""
+    if env.spec is not None and env.spec.max_episode_steps is not None:
+        return int(env.spec.max_episode_steps)
+    length = getattr(env.unwrapped, "episode_length", None)
+    return None if length is None else int(length)
 
 
 def run_episode(
@@ -349,6 +380,7 @@ def run_episode(
         collisions=int(info["collisions"]),
         path_length=path_length,
         nees=value,
+        step_limit=step_limit(env),
     )
 
 
@@ -647,8 +679,9 @@ def summarize(records: Sequence[EpisodeRecord]) -> dict[str, Any]:
 
     ``{"env": id, "episodes": N, "seed": S, "agents": {name: {...}}}`` with, per agent, the keys
     of :data:`SUMMARY_KEYS` (definitions in the module docstring). Values are Python floats,
-    ints, None (``steps_to_localize_*`` without a localized episode) or NaN (mapped to null by
-    :func:`write_results`).
+    ints, None (``steps_to_localize_mean``/``_median`` without a localized episode,
+    ``steps_to_localize_restricted_mean`` with an episode without step limit) or NaN (mapped
+    to null by :func:`write_results`).
 
     Raises:
         ValueError: no records, records of different envs or base seeds, or agents with
@@ -672,11 +705,15 @@ def summarize(records: Sequence[EpisodeRecord]) -> dict[str, Any]:
         successes = sum(r.success for r in group)
         lo, hi = wilson_interval(successes, n)
         steps = [r.steps_to_localize for r in group if r.steps_to_localize is not None]
+        capped = [r.steps_to_localize_or_limit for r in group]
         agents[name] = {
             "success_rate": successes / n,
             "success_ci95": [lo, hi],
             "steps_to_localize_mean": float(np.mean(steps)) if steps else None,
             "steps_to_localize_median": float(np.median(steps)) if steps else None,
+            "steps_to_localize_restricted_mean": (
+                None if None in capped else float(np.mean(capped))
+            ),
             "final_entropy_mean": math.fsum(r.final_entropy for r in group) / n,
             "position_rmse": _rms([r.position_error for r in group]),
             "heading_rmse": _rms([r.heading_error for r in group]),
@@ -793,7 +830,8 @@ def _fmt(value: float | None, digits: int = 3) -> str:
 
 
 def summary_markdown(summary: Mapping[str, Any]) -> str:
-    """``summary`` (as :func:`summarize` returns it) as a Markdown table."""
+    """``summary`` (as :func:`summarize` returns it) as a Markdown table, followed by the
+    paired comparison's table if ``summary`` has one (key ``"paired"``)."""
     episodes, seed = summary["episodes"], summary["seed"]
     lines = [
         f"# Evaluation: {summary['env']}",
@@ -801,10 +839,10 @@ def summary_markdown(summary: Mapping[str, Any]) -> str:
         f"{episodes} episodes per agent, seeds {seed}..{seed + episodes - 1} (the same for "
         "every agent).",
         "",
-        "| agent | success (Wilson 95%) | steps to localize, mean | median | final entropy "
-        "(nats) | position RMSE (m) | heading RMSE (rad) | false convergence | collisions | "
-        "return |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| agent | success (Wilson 95%) | steps to localize, mean | median | restricted mean "
+        "| final entropy (nats) | position RMSE (m) | heading RMSE (rad) | false convergence | "
+        "collisions | return |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, s in summary["agents"].items():
         lo, hi = s["success_ci95"]
@@ -813,6 +851,7 @@ def summary_markdown(summary: Mapping[str, Any]) -> str:
             f"{_fmt(s['success_rate'], 2)} [{_fmt(lo, 2)}, {_fmt(hi, 2)}]",
             _fmt(s["steps_to_localize_mean"], 1),
             _fmt(s["steps_to_localize_median"], 1),
+            _fmt(s["steps_to_localize_restricted_mean"], 1),
             _fmt(s["final_entropy_mean"], 2),
             _fmt(s["position_rmse"]),
             _fmt(s["heading_rmse"]),
@@ -824,11 +863,15 @@ def summary_markdown(summary: Mapping[str, Any]) -> str:
     lines += [
         "",
         "Success: `is_success` at the episode's end, with the Wilson 95% interval. Steps to "
-        "localize: the first step with `is_success`, over the localized episodes only (n/a: "
-        "none localized). RMSE: over the final errors of all episodes. False convergence: "
-        "ends `localized` (confident) without `is_success`. Means per episode.",
+        "localize: the first step with `is_success`; mean and median over the localized "
+        "episodes only (n/a: none localized); the restricted mean over all episodes, one "
+        "never localized counting as the env's step limit. RMSE: over the final errors of all "
+        "episodes. False convergence: ends `localized` (confident) without `is_success`. "
+        "Means per episode.",
         "",
     ]
+    if "paired" in summary:
+        lines.append(comparison_markdown(summary["paired"]))
     return "\n".join(lines)
 
 

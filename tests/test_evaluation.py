@@ -147,10 +147,26 @@ def test_summarize_means_over_localized_episodes_only_and_null_without_any() -> 
     assert a["collisions_mean"] == 2.0
     assert b["steps_to_localize_mean"] is None and b["steps_to_localize_median"] is None
     assert b["success_rate"] == 0.0
+    # without a step limit an episode never localized has no value: no restricted mean
+    assert a["steps_to_localize_restricted_mean"] is None
+    assert b["steps_to_localize_restricted_mean"] is None
     with pytest.raises(ValueError, match="numbers of episodes"):
         summarize(records[:4])
     with pytest.raises(ValueError, match="different envs"):
         summarize([records[0], replace(records[1], env_id="Y-v0")])
+
+
+def test_restricted_mean_counts_episodes_never_localized_at_the_step_limit() -> None:
+    records = [
+        _record([False, True], episode=0, seed=100, step_limit=10),  # 1
+        _record([False, False, False, True], episode=1, seed=101, step_limit=10),  # 3
+        _record([False, False], episode=2, seed=102, step_limit=10),  # never: 10
+    ]
+    assert [r.steps_to_localize_or_limit for r in records] == [1, 3, 10]
+    assert records[2].row()["step_limit"] == 10
+    a = summarize(records)["agents"]["a"]
+    assert a["steps_to_localize_mean"] == 2.0  # the localized episodes only
+    assert a["steps_to_localize_restricted_mean"] == pytest.approx(14 / 3)
 
 
 def test_json_safe_turns_non_finite_numbers_into_null() -> None:
@@ -179,6 +195,7 @@ def test_run_episode_records_every_step_and_the_truths_path() -> None:
     assert record.agent == "textbook" and record.episode == 2 and record.seed == 3
     assert record.base_seed == 1 and record.env_id == TEXTBOOK and record.belief == "ekf"
     assert record.steps == 20 and record.truncated and not record.terminated
+    assert record.step_limit == 20  # the max_episode_steps given to gymnasium.make
     for trace in (record.entropy_trace, record.success_trace, record.localized_trace,
                   record.pose_error_trace, record.heading_error_trace):
         assert len(trace) == 21
@@ -194,6 +211,7 @@ def test_maze_records_have_no_nees_and_paths_in_whole_cells() -> None:
     record = run_episode(env, RandomAgent(0), 4)
     env.close()
     assert record.belief == "grid" and record.nees is None
+    assert record.step_limit == 15  # no TimeLimit: the env's own episode length (n = 7)
     assert record.row()["nees"] is None
     assert record.path_length == round(record.path_length) <= record.steps
 

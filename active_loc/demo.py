@@ -10,7 +10,9 @@ it moves matters. The demo
    information-gain agent and the look-ahead planner on the same seeded episodes with
    :mod:`active_loc.evaluation`;
 3. writes ``reports/demo/`` (``results.csv``, ``summary.json``, ``summary.md``, the entropy and
-   success plots, and the training run under ``reports/demo/train``) and prints the table.
+   success plots, and the training run under ``reports/demo/train``) and prints the table,
+   with every agent compared episode by episode with the passive one
+   (:mod:`active_loc.comparison`).
 
 Run ``python -m active_loc.demo --help`` for the options.
 """
@@ -26,11 +28,14 @@ import gymnasium as gym
 
 import active_loc  # noqa: F401  (registers the env ids)
 from active_loc.agents import make_agent
+from active_loc.comparison import outcomes_of, paired_comparison
 from active_loc.evaluation import evaluate, summarize, summary_markdown, write_results
 from active_loc.evaluation_plots import write_plots
 from active_loc.train import TrainArgs, train
 
 BASELINES = ("random", "passive", "greedy", "horizon")
+#: the agent the others are compared with episode by episode
+PAIRED_BASELINE = "passive"
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -63,6 +68,7 @@ def main(argv: list[str] | None = None) -> None:
     agents.update({name: make_agent(name, env, args.seed) for name in BASELINES})
     records = evaluate(args.env, {}, agents, args.episodes, args.eval_seed)
     summary = summarize(records)
+    summary["paired"] = paired_comparison(outcomes_of(records), PAIRED_BASELINE)
     write_results(records, summary, out)
     write_plots(records, out)
     (out / "train_minutes.json").write_text(json.dumps({"minutes": minutes}) + "\n")

@@ -23,3 +23,6 @@ def test_demo_trains_evaluates_and_writes_its_report(tmp_path: Path) -> None:
                  "train/model.zip", "train/config.json", "train/learning_curve.png"):
         assert (out / name).is_file(), name
     assert "| `PPO` |" in result.stdout
+    assert summary["paired"]["baseline"] == "passive"
+    assert list(summary["paired"]["agents"]) == ["PPO", "random", "greedy", "horizon"]
+    assert "## Against `passive`, episode by episode" in result.stdout

@@ -113,9 +113,11 @@ def _paired(agent: Mapping[int, EpisodeOutcome], baseline: Mapping[int, EpisodeO
     only_baseline = sum(baseline[s].success and not agent[s].success for s in seeds)
     steps = [(agent[s].steps_to_localize_or_limit, baseline[s].steps_to_localize_or_limit)
              for s in seeds]
-    timed = all(a is not None and b is not None for a, b in steps)
-    sooner = sum(a < b for a, b in steps) if timed else 0  # type: ignore[operator]
-    later = sum(a > b for a, b in steps) if timed else 0  # type: ignore[operator]
+    timed = [(a, b) for a, b in steps if a is not None and b is not None]
+    if len(timed) < len(steps):  # an episode without a step limit: no comparison of steps
+        timed = []
+    sooner = sum(a < b for a, b in timed)
+    later = sum(a > b for a, b in timed)
     return {
         "episodes": len(seeds),
         "only_agent": only_agent,
@@ -125,7 +127,7 @@ def _paired(agent: Mapping[int, EpisodeOutcome], baseline: Mapping[int, EpisodeO
         "later": later,
         "sign_test_p": _two_sided_binomial_p(sooner, sooner + later),
         "restricted_mean_difference": (
-            sum(a - b for a, b in steps) / len(steps) if timed else None  # type: ignore[operator]
+            sum(a - b for a, b in timed) / len(timed) if timed else None
         ),
     }
 

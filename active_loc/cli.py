@@ -73,7 +73,6 @@ def evaluate_command(args: argparse.Namespace) -> int:
     import json
 
     from active_loc.agents import make_agent
-    from active_loc.comparison import outcomes_of, paired_comparison
     from active_loc.evaluation import (
         RAY_MISSING,
         evaluate,
@@ -120,9 +119,7 @@ def evaluate_command(args: argparse.Namespace) -> int:
     else:
         records = evaluate(args.env, env_kwargs, agents, args.episodes, args.seed,
                            progress=True)
-    summary = summarize(records)
-    if args.baseline is not None:
-        summary["paired"] = paired_comparison(outcomes_of(records), args.baseline)
+    summary = summarize(records, baseline=args.baseline)
     files = write_results(records, summary, args.out)
     written = [*files.values(), *write_plots(records, args.out)]
     if args.gif:

@@ -28,7 +28,6 @@ import gymnasium as gym
 
 import active_loc  # noqa: F401  (registers the env ids)
 from active_loc.agents import make_agent
-from active_loc.comparison import outcomes_of, paired_comparison
 from active_loc.evaluation import evaluate, summarize, summary_markdown, write_results
 from active_loc.evaluation_plots import write_plots
 from active_loc.train import TrainArgs, train
@@ -67,8 +66,7 @@ def main(argv: list[str] | None = None) -> None:
     agents = {"PPO": make_agent(f"sb3:{run / 'model.zip'}", env, args.seed)}
     agents.update({name: make_agent(name, env, args.seed) for name in BASELINES})
     records = evaluate(args.env, {}, agents, args.episodes, args.eval_seed)
-    summary = summarize(records)
-    summary["paired"] = paired_comparison(outcomes_of(records), PAIRED_BASELINE)
+    summary = summarize(records, baseline=PAIRED_BASELINE)
     write_results(records, summary, out)
     write_plots(records, out)
     (out / "train_minutes.json").write_text(json.dumps({"minutes": minutes}) + "\n")

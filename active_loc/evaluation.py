@@ -75,7 +75,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from active_loc.comparison import comparison_markdown
+from active_loc.comparison import comparison_markdown, outcomes_of, paired_comparison
 from active_loc.geometry import wrap_angle_scalar
 
 #: the columns of ``results.csv``, in order
@@ -674,8 +674,10 @@ def _rms(values: Sequence[float]) -> float:
     return math.sqrt(math.fsum(v * v for v in values) / len(values))
 
 
-def summarize(records: Sequence[EpisodeRecord]) -> dict[str, Any]:
-    """The ``summary.json`` dict of an evaluation's records.
+def summarize(records: Sequence[EpisodeRecord], baseline: str | None = None) -> dict[str, Any]:
+    """The ``summary.json`` dict of an evaluation's records; with ``baseline`` (an agent's
+    name), also every other agent's paired comparison with it under the key ``"paired"``
+    (:func:`active_loc.comparison.paired_comparison`).
 
     ``{"env": id, "episodes": N, "seed": S, "agents": {name: {...}}}`` with, per agent, the keys
     of :data:`SUMMARY_KEYS` (definitions in the module docstring). Values are Python floats,
@@ -684,8 +686,8 @@ def summarize(records: Sequence[EpisodeRecord]) -> dict[str, Any]:
     to null by :func:`write_results`).
 
     Raises:
-        ValueError: no records, records of different envs or base seeds, or agents with
-            different numbers of episodes.
+        ValueError: no records, records of different envs or base seeds, agents with
+            different numbers of episodes, or a ``baseline`` that is not among the agents.
     """
     if not records:
         raise ValueError("summarize needs at least one record")
@@ -721,12 +723,15 @@ def summarize(records: Sequence[EpisodeRecord]) -> dict[str, Any]:
             "collisions_mean": sum(r.collisions for r in group) / n,
             "return_mean": math.fsum(r.episode_return for r in group) / n,
         }
-    return {
+    summary = {
         "env": next(iter(env_ids)),
         "episodes": next(iter(counts.values())),
         "seed": next(iter(base_seeds)),
         "agents": agents,
     }
+    if baseline is not None:
+        summary["paired"] = paired_comparison(outcomes_of(records), baseline)
+    return summary
 
 
 def json_safe(value: Any) -> Any:

@@ -23,6 +23,7 @@ import gymnasium as gym
 
 import active_loc
 from active_loc.agents import AGENT_NAMES, make_agent
+from active_loc.agents.registry import split_top_level
 from active_loc.envs.registration import OTHER_ENV_IDS
 
 
@@ -89,7 +90,7 @@ def evaluate_command(args: argparse.Namespace) -> int:
         return _fail(f"--env-kwargs is not valid JSON: {exc}")
     if not isinstance(env_kwargs, dict):
         return _fail(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
-    specs = [spec.strip() for spec in args.agents.split(",") if spec.strip()]
+    specs = [spec for spec in split_top_level(args.agents) if spec]
     if not specs:
         return _fail("--agents names no agent")
     if len(set(specs)) != len(specs):
@@ -167,7 +168,8 @@ def main(argv: list[str] | None = None) -> int:
     render = sub.add_parser("render", help="write one episode as a GIF or MP4")
     render.add_argument("--env", default="ActiveLoc/Textbook-v0")
     render.add_argument("--agent", default="textbook",
-                        help=f"one of {', '.join(AGENT_NAMES)}, sb3:PATH or sb3-sample:PATH")
+                        help=f"one of {', '.join(AGENT_NAMES)} (parameters in brackets: "
+                        "horizon[horizon=1,hold=5]), sb3:PATH or sb3-sample:PATH")
     render.add_argument("--out", type=Path, default=Path("reports/episode.gif"))
     render.add_argument("--seed", type=int, default=0)
     render.add_argument("--fps", type=int, default=10)
@@ -179,7 +181,8 @@ def main(argv: list[str] | None = None) -> int:
                           help="JSON object of gymnasium.make keyword arguments")
     evaluate.add_argument("--agents", required=True,
                           help="comma-separated: random,passive,greedy,horizon,sb3:PATH,"
-                               "sb3-sample:PATH,...")
+                               "sb3-sample:PATH,...; an agent's parameters in brackets: "
+                               "greedy[n_hypotheses=8],horizon[horizon=1,hold=5]")
     evaluate.add_argument("--episodes", type=int, default=100, help="episodes per agent")
     evaluate.add_argument("--seed", type=int, default=0, help="episode i is reset with seed + i")
     evaluate.add_argument("--out", type=Path, default=Path("reports/eval"))

@@ -318,6 +318,24 @@ def test_cli_evaluate_in_a_subprocess(tmp_path: Path) -> None:
         assert (out / name).stat().st_size > 0
 
 
+def test_cli_evaluate_takes_agent_parameters_and_names_the_rows_by_spec(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    out = tmp_path / "eval"
+    agents = "textbook,textbook[speed=0.5]"
+    assert cli_main(["evaluate", "--env", TEXTBOOK, "--env-kwargs", '{"max_episode_steps": 20}',
+                     "--agents", agents, "--episodes", "2", "--out", str(out),
+                     "--baseline", "textbook"]) == 0
+    capsys.readouterr()
+    with (out / "results.csv").open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [row["agent"] for row in rows] == ["textbook"] * 2 + ["textbook[speed=0.5]"] * 2
+    half, full = (float(rows[i]["path_length"]) for i in (2, 0))
+    assert half < 0.75 * full  # the parameter reached the agent: half the speed
+    assert cli_main(["compare", str(out / "results.csv"), "--baseline", "textbook"]) == 0
+    assert "textbook[speed=0.5]" in capsys.readouterr().out
+
+
 def test_cli_evaluate_reports_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     base = ["evaluate", "--env", TEXTBOOK, "--episodes", "1", "--out", str(tmp_path / "eval")]
     for extra, message in [
@@ -326,6 +344,7 @@ def test_cli_evaluate_reports_bad_input(tmp_path: Path, capsys: pytest.CaptureFi
         (["--agents", "random", "--env-kwargs", "{bad"], "not valid JSON"),
         (["--agents", "random,random"], "twice"),
         (["--agents", "random", "--env-kwargs", '{"fov": -1}'], "fov"),
+        (["--agents", "random,textbook[sped=2]"], "no parameter 'sped'"),
     ]:
         assert cli_main(base + extra) == 2
         assert message in capsys.readouterr().err

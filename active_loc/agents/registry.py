@@ -1,7 +1,10 @@
-"""Agents by name, for the command line: ``make_agent("greedy", env, seed)``."""
+"""Agents by name, for the command line: ``make_agent("greedy", env, seed)``, or with
+parameters: ``make_agent("horizon[horizon=1,hold=5]", env, seed)``."""
 
 from __future__ import annotations
 
+import inspect
+import json
 from typing import Any
 
 import gymnasium as gym
@@ -16,6 +19,94 @@ from active_loc.agents.textbook import TextbookAgent
 #: the names :func:`make_agent` takes (and ``sb3:PATH``)
 AGENT_NAMES = ("random", "passive", "greedy", "horizon", "targets", "textbook", "wanderer",
                "wall_follower")
+
+#: the class of each name but ``passive``, which stands for one of them
+AGENT_CLASSES: dict[str, type] = {
+    "random": RandomAgent, "greedy": GreedyInfoGainAgent, "horizon": HorizonPlannerAgent,
+    "targets": TargetPlannerAgent, "textbook": TextbookAgent, "wanderer": WandererAgent,
+    "wall_follower": WallFollowerAgent,
+}
+
+
+def split_top_level(text: str, separator: str = ",") -> list[str]:
+    """``text`` split at each ``separator`` outside brackets, parts stripped:
+    ``"random,horizon[horizon=1,hold=5]"`` -> ``["random", "horizon[horizon=1,hold=5]"]``."""
+    parts, depth, start = [], 0, 0
+    for i, char in enumerate(text):
+        if char in "[(":
+            depth += 1
+        elif char in "])":
+            depth -= 1
+        elif char == separator and depth == 0:
+            parts.append(text[start:i].strip())
+            start = i + 1
+    parts.append(text[start:].strip())
+    return parts
+
+
+def parse_agent_spec(spec: str) -> tuple[str, dict[str, Any]]:
+    """The name and the parameters of ``"name"`` or ``"name[key=value,...]"``.
+
+    Values are JSON (``3``, ``0.5``, ``true``, ``[0.4, 1.0]``):
+    ``"horizon[horizon=1,hold=5]"`` -> ``("horizon", {"horizon": 1, "hold": 5})``.
+
+    Raises:
+        ValueError: unbalanced brackets, a parameter without ``=``, named twice, or a value
+            that is not JSON.
+    """
+    spec = spec.strip()
+    if "[" not in spec and "]" not in spec:
+        return spec, {}
+    name, _, rest = spec.partition("[")
+    if not rest.endswith("]") or rest.count("[") != rest.count("]") - 1:
+        raise ValueError(f"agent {spec!r}: parameters go in one pair of brackets at the end, "
+                         "as in 'horizon[horizon=1,hold=5]'")
+    params: dict[str, Any] = {}
+    body = rest[:-1].strip()
+    for item in split_top_level(body) if body else []:
+        key, equals, text = item.partition("=")
+        key = key.strip()
+        if not equals or not key:
+            raise ValueError(f"agent {spec!r}: {item!r} is not key=value")
+        if key in params:
+            raise ValueError(f"agent {spec!r}: parameter {key!r} given twice")
+        try:
+            params[key] = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"agent {spec!r}: the value of {key!r}, {text.strip()!r}, is not "
+                             "a number, true/false or a [list]") from exc
+    return name.strip(), params
+
+
+def _check_params(name: str, cls: type, params: dict[str, Any]) -> None:
+    """Every key of ``params`` is a parameter of ``cls`` (other than ``seed``, which the
+    evaluation sets) whose default ``params`` matches in type: an int for an int, a number
+    for a float, a list of numbers as long as a tuple."""
+    defaults = {key: p.default for key, p in inspect.signature(cls).parameters.items()
+                if key != "seed"}
+    for key, value in params.items():
+        if key == "seed":
+            raise ValueError(f"agent {name!r}: its seed comes from the evaluation (--seed), "
+                             "not from its parameters")
+        if key not in defaults:
+            takes = ", ".join(defaults) or "no parameters"
+            raise ValueError(f"agent {name!r} has no parameter {key!r} (it takes {takes})")
+        default = defaults[key]
+        number = isinstance(value, (int, float)) and not isinstance(value, bool)
+        if isinstance(default, bool):
+            ok, want = isinstance(value, bool), "true or false"
+        elif isinstance(default, int):
+            ok, want = isinstance(value, int) and not isinstance(value, bool), "an integer"
+        elif isinstance(default, float):
+            ok, want = number, "a number"
+        elif isinstance(default, tuple):
+            ok = isinstance(value, list) and len(value) == len(default) and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+            want = f"a list of {len(default)} numbers"
+        else:
+            ok, want = True, ""
+        if not ok:
+            raise ValueError(f"agent {name!r}: {key} must be {want}, got {value!r}")
 
 
 def _kind(env: gym.Env) -> str:
@@ -36,10 +127,13 @@ def make_agent(spec: str, env: gym.Env, seed: int = 0) -> Any:
     wall follower on grid maps, a constant-curvature wanderer on landmark maps. ``"sb3:PATH"``
     loads a saved stable-baselines3 model that takes its most likely action;
     ``"sb3-sample:PATH"`` one that samples its actions (with the agent's seeded Generator for
-    PPO and A2C).
+    PPO and A2C). A name may carry its agent's constructor parameters in brackets (see
+    :func:`parse_agent_spec`): ``"greedy[n_hypotheses=8]"``, ``"horizon[horizon=1,hold=5]"``;
+    those not given keep their defaults, and ``seed`` is always ``seed``.
 
     Raises:
-        ValueError: an unknown name, or an agent that cannot drive this env.
+        ValueError: an unknown name or parameter, a value of the wrong type or range, or an
+            agent that cannot drive this env.
     """
     kind = _kind(env)
     if spec.startswith(("sb3:", "sb3-sample:")):
@@ -47,29 +141,27 @@ def make_agent(spec: str, env: gym.Env, seed: int = 0) -> Any:
 
         kind_of_sb3, path = spec.split(":", 1)
         return SB3Agent.load(path, deterministic=kind_of_sb3 == "sb3", seed=seed)
-    if spec == "passive":
+    name, params = parse_agent_spec(spec)
+    if name == "passive":
         if kind == "maze":
             raise ValueError("no passive agent for Maze-v0: its only reading, the depth, "
                              "reaches agents through the belief")
-        spec = {"textbook": "textbook", "lidar": "wall_follower"}.get(kind, "wanderer")
-    if spec == "random":
-        return RandomAgent(seed)
-    if spec == "greedy":
-        return GreedyInfoGainAgent(seed=seed)
-    if spec == "horizon":
-        return HorizonPlannerAgent(seed=seed)
-    if spec == "targets":
-        if kind != "lidar":
-            raise ValueError("agent 'targets' plans paths on a grid map: it needs a grid env "
-                             "with a lidar")
-        return TargetPlannerAgent(seed=seed)
-    if spec in ("textbook", "wanderer", "wall_follower"):
+        name = {"textbook": "textbook", "lidar": "wall_follower"}.get(kind, "wanderer")
+    if name not in AGENT_CLASSES:
+        raise ValueError(
+            f"unknown agent {spec!r}: one of {AGENT_NAMES} (with [key=value,...] parameters "
+            "or not), 'sb3:PATH' or 'sb3-sample:PATH'"
+        )
+    if name == "targets" and kind != "lidar":
+        raise ValueError("agent 'targets' plans paths on a grid map: it needs a grid env "
+                         "with a lidar")
+    if name in ("textbook", "wanderer", "wall_follower"):
         if kind == "maze":
-            raise ValueError(f"agent {spec!r} drives a unicycle robot; Maze-v0 has none")
-        if spec == "wall_follower" and kind != "lidar":
+            raise ValueError(f"agent {name!r} drives a unicycle robot; Maze-v0 has none")
+        if name == "wall_follower" and kind != "lidar":
             raise ValueError("agent 'wall_follower' needs a grid env with a lidar")
-        return {"textbook": TextbookAgent, "wanderer": WandererAgent,
-                "wall_follower": WallFollowerAgent}[spec]()
-    raise ValueError(
-        f"unknown agent {spec!r}: one of {AGENT_NAMES}, 'sb3:PATH' or 'sb3-sample:PATH'"
-    )
+    cls = AGENT_CLASSES[name]
+    _check_params(name, cls, params)
+    if "seed" in inspect.signature(cls).parameters:
+        params["seed"] = seed
+    return cls(**params)

@@ -16,6 +16,7 @@ from active_loc.agents import (
     WallFollowerAgent,
     make_agent,
 )
+from active_loc.agents.registry import split_top_level
 
 
 def scramble_truth(env: gym.Env, rng: np.random.Generator) -> Any:
@@ -151,6 +152,41 @@ def test_the_wall_follower_drives_without_hitting_walls():
 def test_agents_that_cannot_drive_the_env_are_refused(env_id, name, match):
     with pytest.raises(ValueError, match=match):
         make_agent(name, gym.make(env_id))
+
+
+def test_parameters_in_brackets_reach_the_agent_and_the_rest_keep_their_defaults():
+    env = gym.make("ActiveLoc/GridMCL-v0", action_type="discrete")
+    agent = make_agent("horizon[horizon=1, hold=4, travel_cost=0]", env, seed=7)
+    assert (agent.horizon, agent.hold, agent.travel_cost) == (1, 4, 0.0)
+    assert agent.n_rollouts == HorizonPlannerAgent().n_rollouts
+    assert make_agent("passive[right_band=[0.3, 0.9]]", env).right_band == (0.3, 0.9)
+    assert split_top_level("random, horizon[horizon=1,hold=5],sb3:a.zip") == [
+        "random", "horizon[horizon=1,hold=5]", "sb3:a.zip"]
+    # the seed is the evaluation's, as for an agent named without parameters
+    obs, _ = env.reset(seed=3)
+    view = env.unwrapped.planner_view()
+    plain, bracketed = make_agent("greedy", env, seed=9), make_agent("greedy[]", env, seed=9)
+    assert plain.act(obs, view) == bracketed.act(obs, view)
+
+
+@pytest.mark.parametrize(
+    ("spec", "match"),
+    [("horizon[hrizon=1]", "no parameter 'hrizon' .*takes horizon, hold"),
+     ("horizon[hold=2.5]", "hold must be an integer"),
+     ("greedy[n_hypotheses=true]", "n_hypotheses must be an integer"),
+     ("horizon[travel_cost=cheap]", "'cheap', is not a number"),
+     ("passive[right_band=[1]]", "list of 2 numbers"),
+     ("horizon[hold=1", "one pair of brackets"),
+     ("horizon[hold]", "not key=value"),
+     ("horizon[hold=1,hold=2]", "given twice"),
+     ("greedy[seed=3]", "seed comes from the evaluation"),
+     ("random[n=1]", "takes no parameters"),
+     ("horizon[hold=0]", "must be >= 1"),
+     ("clever[x=1]", "unknown agent")],
+)
+def test_bad_agent_parameters_are_refused_by_name(spec, match):
+    with pytest.raises(ValueError, match=match):
+        make_agent(spec, gym.make("ActiveLoc/GridMCL-v0", action_type="discrete"))
 
 
 def test_a_planned_move_into_a_wall_is_blocked_as_in_the_env():

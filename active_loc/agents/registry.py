@@ -79,9 +79,10 @@ def parse_agent_spec(spec: str) -> tuple[str, dict[str, Any]]:
 
 
 def _check_params(name: str, cls: type, params: dict[str, Any]) -> None:
-    """Every key of ``params`` is a parameter of ``cls`` (other than ``seed``, which the
-    evaluation sets) whose default ``params`` matches in type: an int for an int, a number
-    for a float, a list of numbers as long as a tuple."""
+    """Every key of ``params`` is a parameter of ``cls`` other than ``seed`` (which the
+    evaluation sets), and its value has the type of the parameter's default: an int for an
+    int, a number for a float, a list of numbers as long as a tuple. ``name`` is the agent's
+    name in the messages."""
     defaults = {key: p.default for key, p in inspect.signature(cls).parameters.items()
                 if key != "seed"}
     for key, value in params.items():
@@ -141,7 +142,8 @@ def make_agent(spec: str, env: gym.Env, seed: int = 0) -> Any:
 
         kind_of_sb3, path = spec.split(":", 1)
         return SB3Agent.load(path, deterministic=kind_of_sb3 == "sb3", seed=seed)
-    name, params = parse_agent_spec(spec)
+    requested, params = parse_agent_spec(spec)
+    name = requested
     if name == "passive":
         if kind == "maze":
             raise ValueError("no passive agent for Maze-v0: its only reading, the depth, "
@@ -161,7 +163,7 @@ def make_agent(spec: str, env: gym.Env, seed: int = 0) -> Any:
         if name == "wall_follower" and kind != "lidar":
             raise ValueError("agent 'wall_follower' needs a grid env with a lidar")
     cls = AGENT_CLASSES[name]
-    _check_params(name, cls, params)
+    _check_params(name if name == requested else f"{requested} ({name} here)", cls, params)
     if "seed" in inspect.signature(cls).parameters:
         params["seed"] = seed
     return cls(**params)

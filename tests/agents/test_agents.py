@@ -175,7 +175,8 @@ def test_parameters_in_brackets_reach_the_agent_and_the_rest_keep_their_defaults
      ("horizon[hold=2.5]", "hold must be an integer"),
      ("greedy[n_hypotheses=true]", "n_hypotheses must be an integer"),
      ("horizon[travel_cost=cheap]", "'cheap', is not a number"),
-     ("passive[right_band=[1]]", "list of 2 numbers"),
+     ("passive[right_band=[1]]", r"'passive \(wall_follower here\)': right_band must be a "
+                                 "list of 2 numbers"),
      ("horizon[hold=1", "one pair of brackets"),
      ("horizon[hold]", "not key=value"),
      ("horizon[hold=1,hold=2]", "given twice"),

@@ -25,7 +25,7 @@ from active_loc.evaluation import agent_rng, evaluate, evaluate_ray, reseed_agen
 
 ENV = "ActiveLoc/LandmarkEKF-v0"
 SHORT = {"max_episode_steps": 40}
-AGENTS = ("random", "greedy")
+AGENTS = ("random", "greedy[n_hypotheses=2]")  # a spec with parameters, rebuilt by each task
 
 
 def _agents(seed: int = 0) -> dict[str, Any]:

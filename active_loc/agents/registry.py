@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import inspect
 import json
+from collections.abc import Mapping
 from typing import Any
 
 import gymnasium as gym
@@ -16,10 +17,6 @@ from active_loc.agents.random_agent import RandomAgent
 from active_loc.agents.targets import TargetPlannerAgent
 from active_loc.agents.textbook import TextbookAgent
 
-#: the names :func:`make_agent` takes (and ``sb3:PATH``)
-AGENT_NAMES = ("random", "passive", "greedy", "horizon", "targets", "textbook", "wanderer",
-               "wall_follower")
-
 #: the class of each name but ``passive``, which stands for one of them
 AGENT_CLASSES: dict[str, type] = {
     "random": RandomAgent, "greedy": GreedyInfoGainAgent, "horizon": HorizonPlannerAgent,
@@ -27,15 +24,18 @@ AGENT_CLASSES: dict[str, type] = {
     "wall_follower": WallFollowerAgent,
 }
 
+#: the names :func:`make_agent` takes (and ``sb3:PATH``)
+AGENT_NAMES = ("passive", *AGENT_CLASSES)
+
 
 def split_top_level(text: str, separator: str = ",") -> list[str]:
-    """``text`` split at each ``separator`` outside brackets, parts stripped:
+    """``text`` split at each ``separator`` outside square brackets, parts stripped:
     ``"random,horizon[horizon=1,hold=5]"`` -> ``["random", "horizon[horizon=1,hold=5]"]``."""
     parts, depth, start = [], 0, 0
     for i, char in enumerate(text):
-        if char in "[(":
+        if char == "[":
             depth += 1
-        elif char in "])":
+        elif char == "]":
             depth -= 1
         elif char == separator and depth == 0:
             parts.append(text[start:i].strip())
@@ -78,36 +78,41 @@ def parse_agent_spec(spec: str) -> tuple[str, dict[str, Any]]:
     return name.strip(), params
 
 
-def _check_params(name: str, cls: type, params: dict[str, Any]) -> None:
-    """Every key of ``params`` is a parameter of ``cls`` other than ``seed`` (which the
-    evaluation sets), and its value has the type of the parameter's default: an int for an
-    int, a number for a float, a list of numbers as long as a tuple. ``name`` is the agent's
-    name in the messages."""
-    defaults = {key: p.default for key, p in inspect.signature(cls).parameters.items()
-                if key != "seed"}
+def _wrong_type(default: Any, value: Any) -> str | None:
+    """What ``value`` should be to stand in for ``default`` (an int for an int, a number for a
+    float, a list of numbers as long as a tuple), or None if it fits."""
+    def is_number(v: Any) -> bool:
+        return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+    if isinstance(default, bool):
+        return None if isinstance(value, bool) else "true or false"
+    if isinstance(default, int):
+        return None if is_number(value) and isinstance(value, int) else "an integer"
+    if isinstance(default, float):
+        return None if is_number(value) else "a number"
+    if isinstance(default, tuple) and not (
+        isinstance(value, list) and len(value) == len(default) and all(map(is_number, value))
+    ):
+        return f"a list of {len(default)} numbers"
+    return None
+
+
+def _check_params(label: str, parameters: Mapping[str, inspect.Parameter],
+                  params: dict[str, Any]) -> None:
+    """Every key of ``params`` is one of the constructor's ``parameters`` other than ``seed``
+    (which the evaluation sets), and its value fits the parameter's default
+    (:func:`_wrong_type`). ``label`` names the agent in the messages."""
+    defaults = {key: p.default for key, p in parameters.items() if key != "seed"}
     for key, value in params.items():
         if key == "seed":
-            raise ValueError(f"agent {name!r}: its seed comes from the evaluation (--seed), "
+            raise ValueError(f"agent {label!r}: its seed comes from the evaluation (--seed), "
                              "not from its parameters")
         if key not in defaults:
             takes = ", ".join(defaults) or "no parameters"
-            raise ValueError(f"agent {name!r} has no parameter {key!r} (it takes {takes})")
-        default = defaults[key]
-        number = isinstance(value, (int, float)) and not isinstance(value, bool)
-        if isinstance(default, bool):
-            ok, want = isinstance(value, bool), "true or false"
-        elif isinstance(default, int):
-            ok, want = isinstance(value, int) and not isinstance(value, bool), "an integer"
-        elif isinstance(default, float):
-            ok, want = number, "a number"
-        elif isinstance(default, tuple):
-            ok = isinstance(value, list) and len(value) == len(default) and all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
-            want = f"a list of {len(default)} numbers"
-        else:
-            ok, want = True, ""
-        if not ok:
-            raise ValueError(f"agent {name!r}: {key} must be {want}, got {value!r}")
+            raise ValueError(f"agent {label!r} has no parameter {key!r} (it takes {takes})")
+        want = _wrong_type(defaults[key], value)
+        if want is not None:
+            raise ValueError(f"agent {label!r}: {key} must be {want}, got {value!r}")
 
 
 def _kind(env: gym.Env) -> str:
@@ -163,7 +168,9 @@ def make_agent(spec: str, env: gym.Env, seed: int = 0) -> Any:
         if name == "wall_follower" and kind != "lidar":
             raise ValueError("agent 'wall_follower' needs a grid env with a lidar")
     cls = AGENT_CLASSES[name]
-    _check_params(name if name == requested else f"{requested} ({name} here)", cls, params)
-    if "seed" in inspect.signature(cls).parameters:
+    parameters = inspect.signature(cls).parameters
+    _check_params(name if name == requested else f"{requested} ({name} here)", parameters,
+                  params)
+    if "seed" in parameters:
         params["seed"] = seed
     return cls(**params)

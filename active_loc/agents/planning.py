@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from active_loc.beliefs.grid import GridBelief
 from active_loc.beliefs.mcl import MCLBelief
 
 
@@ -83,29 +84,53 @@ def collision_penalty_of(view: Any) -> float:
     return float(getattr(view, "collision_penalty", 0.0))
 
 
+def has_histogram_entropy(belief: Any) -> bool:
+    """Whether ``belief``'s entropy is counted in bins of the pose space: MCL particles in
+    histogram bins, a grid belief in its cells (an EKF's is the Gaussian's closed form)."""
+    return isinstance(belief, (MCLBelief, GridBelief))
+
+
 def expected_cost_after(
     view: Any, action: Any, belief: Any, n_hypotheses: int, seed: int
 ) -> float:
-    """``E[H(b')] + collision_penalty * P(blocked)`` after ``action``, one step ahead (nats).
+    """The one-step score of ``action`` (nats, lower is better): the entropy expected after
+    it, plus ``collision_penalty * P(blocked)``.
 
-    Minimizing it maximizes the env's expected reward, information gain minus the collision
-    penalty (the step cost is the same for every action). Without the penalty term a planner
-    on a grid map happily drives into walls: the scan repeated from where it stopped still
-    lowers the entropy of a filter that takes its beams as independent.
+    Without the penalty term a planner on a grid map happily drives into walls: the scan
+    repeated from where it stopped still lowers the entropy of a filter that takes its beams
+    as independent.
 
     Exact for the maze (every possible depth reading, weighted by its probability; its
     reward has no collision term). Otherwise the mean over ``n_hypotheses`` simulated steps
     (a pose drawn from the belief, moved, its scan, the update), drawn from a Generator seeded
     with ``seed``, so that every action is scored on the same random numbers. For the EKF the
     posterior covariance does not depend on the measured values, only on which landmarks are
-    in view, so the hypotheses only sample that.
+    in view, so the hypotheses only sample that. For these two the score is ``E[H(b')]``, and
+    minimizing it maximizes the env's expected reward (information gain minus the collision
+    penalty; the step cost is the same for every action).
+
+    MCL and grid beliefs score ``H(b) - E[H(b-) - H(b')]``, where ``b-`` is the belief
+    predicted with the action under the same hypothesis: the entropy the scan is expected to
+    remove, in the bins of the belief it corrects. Their entropy is a histogram's, and it
+    depends on where the bin edges cut a sharp belief: a cloud of a few degrees moved across
+    a 10-degree heading edge gains up to log 2 nats with nothing learned or lost (on the
+    symmetric arena a 0.3 rad turn predicted 0.4 nats more than staying, before any scan).
+    Scored as ``E[H(b')]``, those shifts decided the choice. The move itself changes the
+    exact entropy by the same amount for every action (the unicycle step keeps volumes and
+    the noise is additive), except where poses are pushed into walls. The env's reward keeps
+    the shifts, step by step; over an episode they cancel (the information gains sum to the
+    first entropy minus the last).
     """
     if hasattr(view, "outcomes"):
         return sum(p * entropy_of(post) for _, p, post in view.outcomes(action, belief))
     penalty = collision_penalty_of(view)
+    scan_share_only = has_histogram_entropy(belief)
     rng = np.random.default_rng(seed)
     total = 0.0
     for _ in range(n_hypotheses):
-        after, _, _, blocked = view.hypothesize(action, belief, rng)
-        total += entropy_of(after) + (penalty if blocked else 0.0)
-    return total / n_hypotheses
+        after, pose, blocked = view.predict_hypothesis(action, belief, rng)
+        predicted = entropy_of(after) if scan_share_only else 0.0
+        view.correct(after, pose, rng)
+        total += entropy_of(after) - predicted + (penalty if blocked else 0.0)
+    start = entropy_of(belief) if scan_share_only else 0.0
+    return start + total / n_hypotheses

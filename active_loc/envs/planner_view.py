@@ -112,18 +112,25 @@ class PlannerView:
             robot's move was blocked by a wall (grid maps; False on landmark maps, whose
             planners do not model the border).
         """
+        out, pose, blocked = self.predict_hypothesis(action, belief, rng)
+        z, visible = self.correct(out, pose, rng)
+        return out, z, visible, blocked
+
+    # --- the pieces of a hypothetical step (planners that roll out longer use them too) ------
+
+    def predict_hypothesis(
+        self, action: object, belief: AnyBelief, rng: np.random.Generator
+    ) -> tuple[AnyBelief, NDArray[np.float64], bool]:
+        """The first half of :meth:`hypothesize`: a predicted copy of ``belief``, the pose
+        ``(3,)`` the hypothetical robot scans from, and whether its move was blocked."""
         out = belief.copy()
         control = self.decode(action)
         if isinstance(self.map, OccupancyGrid):
             pose, blocked = self.move(self.draw_pose(out, rng), control)
             self.predict(out, control, blocked, rng)
-        else:
-            self.predict(out, control, False, rng)
-            pose, blocked = self.draw_pose(out, rng), False
-        z, visible = self.correct(out, pose, rng)
-        return out, z, visible, blocked
-
-    # --- the pieces of a hypothetical step (planners that roll out longer use them too) ------
+            return out, pose, blocked
+        self.predict(out, control, False, rng)
+        return out, self.draw_pose(out, rng), False
 
     def draw_pose(self, belief: AnyBelief, rng: np.random.Generator) -> NDArray[np.float64]:
         """A pose ``(3,)`` drawn from ``belief`` with one draw of ``rng``: a Gaussian draw

@@ -3,6 +3,7 @@ the look-ahead planner escapes the one-step agent's dithering in the maze."""
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import gymnasium as gym
@@ -16,6 +17,7 @@ from active_loc.agents import (
     WallFollowerAgent,
     make_agent,
 )
+from active_loc.agents.planning import entropy_of, expected_cost_after
 from active_loc.agents.registry import split_top_level
 
 
@@ -254,6 +256,50 @@ def test_hypothesize_is_its_pieces_in_order(env_id, kwargs):
     assert blocked == blocked_one
     np.testing.assert_array_equal(z_one, z_two)
     assert float(np.ravel(one.entropy())[0]) == float(np.ravel(two.entropy())[0])
+
+
+SHARP = {"initial_belief": "gaussian", "initial_error_std": (0.0, 0.0, 0.0),
+         "initial_belief_std": (0.03, 0.03, 0.02), "n_particles": 2000, "kld": False}
+
+
+@pytest.mark.parametrize(("env_id", "kwargs"), [
+    ("ActiveLoc/GridMCL-v0", SHARP),
+    ("ActiveLoc/LandmarkMCL-v0", SHARP),
+    ("ActiveLoc/GridMarkov-v0", {}),
+])
+def test_a_scan_that_teaches_nothing_scores_the_current_entropy(env_id, kwargs, monkeypatch):
+    """Particle and grid entropies are histograms, so moving a sharp belief across bin edges
+    changes them with nothing learned. The one-step score counts only what the scan removes:
+    with a scan that changes nothing, every action scores the entropy the belief has now,
+    though the predicted beliefs' entropies differ from action to action."""
+    env = gym.make(env_id, action_type="discrete", **kwargs)
+    env.reset(seed=5)
+    view = dataclasses.replace(env.unwrapped.planner_view(), collision_penalty=0.0)
+    now = entropy_of(view.belief)
+    predicted = [entropy_of(view.predict_hypothesis(a, view.belief, np.random.default_rng(1))[0])
+                 for a in range(env.action_space.n)]
+    monkeypatch.setattr(type(view), "correct", lambda self, belief, pose, rng: (None, None))
+    scores = [expected_cost_after(view, a, view.belief, 4, seed=1)
+              for a in range(env.action_space.n)]
+    print(f"{env_id}: now {now:.3f}, predicted {np.round(predicted, 3)}")
+    assert max(predicted) - min(predicted) > 0.01
+    np.testing.assert_allclose(scores, now, rtol=0, atol=1e-9)
+
+
+def test_the_ekf_score_is_the_expected_posterior_entropy():
+    """An EKF's entropy is the Gaussian's closed form, which no bin edge cuts: its score stays
+    the mean posterior entropy over the hypotheses (plus the collision penalty)."""
+    env = gym.make("ActiveLoc/LandmarkEKF-v0")
+    env.reset(seed=2)
+    view = env.unwrapped.planner_view()
+    action = np.array([0.5, 0.3], dtype=np.float32)
+    rng = np.random.default_rng(11)
+    expected = np.mean([
+        entropy_of(after) + (view.collision_penalty if blocked else 0.0)
+        for after, _, _, blocked in (view.hypothesize(action, view.belief, rng) for _ in range(5))
+    ])
+    assert expected_cost_after(view, action, view.belief, 5, seed=11) == pytest.approx(
+        expected, abs=1e-12)
 
 
 def test_the_horizon_planner_holds_each_macro_action_then_plans_again():

@@ -12,9 +12,15 @@ after getting there plus the cost of the trip. Here that is a k-step lookahead:
   macro-action the belief is corrected with the scan simulated from where that robot stands.
 
 A plan's cost is the sum of the entropies along it, plus the travel cost per metre and the
-env's collision penalty per bump. Summing the entropies, not just taking the last one, makes
-information gained sooner worth more: with the final entropy alone, a step wasted now (a move
-into a wall) costs nothing whenever the rest of the plan can still gain the same.
+env's collision penalty per bump. For particle and grid beliefs the entropy after each
+macro-action is counted as the one-step agent counts it: the entropy before, minus what that
+macro-action's scan removes in the bins of the belief it corrects
+(:func:`~active_loc.agents.planning.entropy_after_scan`), so that where histogram bin edges
+cut a sharp belief does not rank the plans.
+
+Summing the entropies, not just taking the last one, makes information gained sooner worth
+more: with the final entropy alone, a step wasted now (a move into a wall) costs nothing
+whenever the rest of the plan can still gain the same.
 
 The macro-actions are what let it see far enough. Five steps of 0.2 s per macro-action and
 three of them look 3 m ahead, which is what it takes to get out of a room and look down a
@@ -34,6 +40,7 @@ from numpy.typing import NDArray
 from active_loc.agents.planning import (
     candidate_actions,
     collision_penalty_of,
+    entropy_after_scan,
     entropy_of,
     planning_belief,
     primitive_action,
@@ -98,12 +105,13 @@ class HorizonPlannerAgent:
 
     # --- continuous robots: rollouts of macro-action plans ---------------------------------
 
-    def _plan_costs(self, view: Any, belief: Any, pose: NDArray[np.float64], depth: int,
-                    seed: list[int]) -> NDArray[np.float64]:
-        """The cost (nats) of every plan ``depth`` macro-actions long from ``belief``, rolled
-        out from the hypothetical robot at ``pose`` ``(3,)``: ``(len(MACRO_PRIMITIVES) **
-        depth,)``, the plans in lexicographic order. Siblings draw the same noise (``seed``
-        and the depth seed it), so that plans are compared on common random numbers."""
+    def _plan_costs(self, view: Any, belief: Any, entropy: float, pose: NDArray[np.float64],
+                    depth: int, seed: list[int]) -> NDArray[np.float64]:
+        """The cost (nats) of every plan ``depth`` macro-actions long from ``belief`` (whose
+        entropy counts as ``entropy``), rolled out from the hypothetical robot at ``pose``
+        ``(3,)``: ``(len(MACRO_PRIMITIVES) ** depth,)``, the plans in lexicographic order.
+        Siblings draw the same noise (``seed`` and the depth seed it), so that plans are
+        compared on common random numbers."""
         if depth == 0:
             return np.zeros(1)
         penalty = collision_penalty_of(view)
@@ -119,9 +127,9 @@ class HorizonPlannerAgent:
                 at, blocked = view.move(at, control)
                 view.predict(moved, control, blocked, rng)
                 cost += penalty if blocked else travel
-            view.correct(moved, at, rng)
-            cost += self.hold * entropy_of(moved)
-            costs.append(cost + self._plan_costs(view, moved, at, depth - 1, seed))
+            after = entropy_after_scan(view, moved, at, rng, entropy)
+            cost += self.hold * after
+            costs.append(cost + self._plan_costs(view, moved, after, at, depth - 1, seed))
         return np.concatenate(costs)
 
     def _macro_scores(self, view: Any) -> NDArray[np.float64]:
@@ -129,10 +137,11 @@ class HorizonPlannerAgent:
         the plans' costs averaged over the rollouts, then the least per first macro-action."""
         belief = planning_belief(view.belief, self.max_particles, self.rng)
         seed = int(self.rng.integers(2**63))  # common random numbers across the plans
+        start = entropy_of(belief)
         total = np.zeros(len(MACRO_PRIMITIVES) ** self.horizon)
         for rollout in range(self.n_rollouts):
             pose = view.draw_pose(belief, np.random.default_rng([seed, rollout]))
-            total += self._plan_costs(view, belief, pose, self.horizon, [seed, rollout])
+            total += self._plan_costs(view, belief, start, pose, self.horizon, [seed, rollout])
         return (total / self.n_rollouts).reshape(len(MACRO_PRIMITIVES), -1).min(axis=1)
 
     # --- choosing --------------------------------------------------------------------------

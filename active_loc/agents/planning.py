@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 from gymnasium import spaces
+from numpy.typing import NDArray
 
 from active_loc.beliefs.grid import GridBelief
 from active_loc.beliefs.mcl import MCLBelief
@@ -124,13 +125,26 @@ def expected_cost_after(
     if hasattr(view, "outcomes"):
         return sum(p * entropy_of(post) for _, p, post in view.outcomes(action, belief))
     penalty = collision_penalty_of(view)
-    scan_share_only = has_histogram_entropy(belief)
+    start = entropy_of(belief)
     rng = np.random.default_rng(seed)
     total = 0.0
     for _ in range(n_hypotheses):
         after, pose, blocked = view.predict_hypothesis(action, belief, rng)
-        predicted = entropy_of(after) if scan_share_only else 0.0
-        view.correct(after, pose, rng)
-        total += entropy_of(after) - predicted + (penalty if blocked else 0.0)
-    start = entropy_of(belief) if scan_share_only else 0.0
-    return start + total / n_hypotheses
+        total += entropy_after_scan(view, after, pose, rng, start)
+        total += penalty if blocked else 0.0
+    return total / n_hypotheses
+
+
+def entropy_after_scan(view: Any, predicted: Any, pose: NDArray[np.float64],
+                       rng: np.random.Generator, entropy_before: float) -> float:
+    """Correct ``predicted`` (in place) with the scan simulated from ``pose`` ``(3,)`` and
+    return the entropy (nats) a planner counts after it: the belief's own for an EKF; for
+    particle and grid beliefs ``entropy_before`` (what the planner counted before the move)
+    minus the entropy the scan removed in ``predicted``'s bins (see
+    :func:`expected_cost_after`)."""
+    if not has_histogram_entropy(predicted):
+        view.correct(predicted, pose, rng)
+        return entropy_of(predicted)
+    before_scan = entropy_of(predicted)
+    view.correct(predicted, pose, rng)
+    return entropy_before - (before_scan - entropy_of(predicted))

@@ -286,6 +286,18 @@ def test_a_scan_that_teaches_nothing_scores_the_current_entropy(env_id, kwargs, 
     np.testing.assert_allclose(scores, now, rtol=0, atol=1e-9)
 
 
+def test_plans_that_teach_nothing_cost_the_same(monkeypatch):
+    """The horizon planner counts entropy as the one-step score does: with scans that change
+    nothing, no travel cost and no collision penalty, every plan costs the same."""
+    env = gym.make("ActiveLoc/GridMCL-v0", action_type="discrete", **SHARP)
+    env.reset(seed=5)
+    view = dataclasses.replace(env.unwrapped.planner_view(), collision_penalty=0.0)
+    monkeypatch.setattr(type(view), "correct", lambda self, belief, pose, rng: (None, None))
+    agent = HorizonPlannerAgent(horizon=2, hold=2, travel_cost=0.0, n_rollouts=2, seed=0)
+    _, scores = agent.scores(view)
+    assert np.ptp(scores) < 1e-9
+
+
 def test_the_ekf_score_is_the_expected_posterior_entropy():
     """An EKF's entropy is the Gaussian's closed form, which no bin edge cuts: its score stays
     the mean posterior entropy over the hypotheses (plus the collision penalty)."""

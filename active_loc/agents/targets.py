@@ -20,8 +20,10 @@ Each plan (:meth:`TargetPlannerAgent.plan`):
    pose of the set, and for each of ``n_hypotheses`` poses drawn by weight (the same draws for
    every target) a scan is simulated from where that hypothesis ends up; the posterior
    entropy of the moved set after that scan, averaged over the draws, is the expected
-   entropy. A draw whose path runs into a wall scores the current entropy plus the env's
-   collision penalty.
+   entropy. (Counted in two shares, so that where histogram bin edges cut the moved set does
+   not count: the poses the move drops into walls in the bins they start in, what the scan
+   removes in the bins they end in.) A draw whose path runs into a wall scores the current
+   entropy plus the env's collision penalty.
 4. The best target's path becomes waypoints in the robot's frame, followed with the motion
    primitives and carried along by dead reckoning of the agent's own controls; the agent
    re-plans when it gets there, or after ``replan_every`` steps.
@@ -239,21 +241,31 @@ class TargetPlannerAgent:
                           feasible: NDArray, delta: NDArray, h0: float, seed: int) -> float:
         """Mean over the hypotheses of the entropy after moving every pose by ``delta`` and
         scanning from where the hypothesis ends up (``h0`` plus the collision penalty for a
-        hypothesis that cannot get there)."""
+        hypothesis that cannot get there).
+
+        The move's share (poses that would end in a wall drop out) is counted in the bins the
+        poses start in, and the scan's share in the bins they end in: a rigid move of a sharp
+        set across bin edges changes its histogram entropy with nothing learned (see
+        :func:`~active_loc.agents.planning.expected_cost_after`)."""
         grid, sensor, score = view.map, view.sensor, scan_scorer(view)
         arrays = grid.kernel_arrays()
         rng = np.random.default_rng(seed)
         moved = compose(pose_set.poses, delta[None, :])
         prior = pose_set.log_weights + np.where(grid.is_free(moved[:, :2]), 0.0, -np.inf)
         penalty = collision_penalty_of(view)
+        arrivable = np.isfinite(prior).any()
+        if arrivable:
+            h_arrived = pose_set.entropy(pose_set.poses, prior)  # in the starting bins
+            h_moved = pose_set.entropy(moved, prior)
         total = 0.0
         for hypothesis, ok in zip(hypotheses, feasible, strict=True):
-            if not ok or not np.isfinite(prior).any():
+            if not ok or not arrivable:
                 total += h0 + penalty
                 continue
             scan = sensor.measure(compose(hypothesis, delta), arrays, rng)
             log_lik = score(scan, moved)
-            total += pose_set.entropy(moved, prior + pose_set.likelihood_exponent * log_lik)
+            h_scanned = pose_set.entropy(moved, prior + pose_set.likelihood_exponent * log_lik)
+            total += h_arrived - (h_moved - h_scanned)
         return total / hypotheses.shape[0]
 
     # --- following the plan ----------------------------------------------------------------

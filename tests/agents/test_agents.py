@@ -16,9 +16,12 @@ from active_loc.agents import (
     HorizonPlannerAgent,
     WallFollowerAgent,
     make_agent,
+    targets,
 )
 from active_loc.agents.planning import entropy_of, expected_cost_after
 from active_loc.agents.registry import split_top_level
+from active_loc.agents.targets import PoseSet, TargetPlannerAgent
+from active_loc.geometry import compose
 
 
 def scramble_truth(env: gym.Env, rng: np.random.Generator) -> Any:
@@ -296,6 +299,27 @@ def test_plans_that_teach_nothing_cost_the_same(monkeypatch):
     agent = HorizonPlannerAgent(horizon=2, hold=2, travel_cost=0.0, n_rollouts=2, seed=0)
     _, scores = agent.scores(view)
     assert np.ptp(scores) < 1e-9
+
+
+def test_a_target_whose_scan_teaches_nothing_scores_the_current_entropy(monkeypatch):
+    """The target planner too: turning the whole pose set on the spot moves it across heading
+    bin edges, but with a scan that tells nothing every turn scores the entropy of now."""
+    env = gym.make("ActiveLoc/GridMCL-v0", action_type="discrete", **SHARP)
+    env.reset(seed=5)
+    view = env.unwrapped.planner_view()
+    rng = np.random.default_rng(0)
+    pose_set = PoseSet.from_view(view, 500, rng)
+    hypotheses = pose_set.draw(3, rng)
+    h0 = pose_set.entropy()
+    turns = [np.array([0.0, 0.0, a]) for a in (0.1, 0.2, 0.3, 0.4, 0.5)]
+    turned = [pose_set.entropy(compose(pose_set.poses, d[None, :])) for d in turns]
+    monkeypatch.setattr(targets, "scan_scorer",
+                        lambda view: lambda z, poses: np.zeros(poses.shape[0]))
+    agent = TargetPlannerAgent(seed=0)
+    scores = [agent._expected_entropy(view, pose_set, hypotheses, np.ones(3, dtype=bool), d,
+                                      h0, seed=1) for d in turns]
+    assert max(turned) - min(turned) > 0.01
+    np.testing.assert_allclose(scores, h0, rtol=0, atol=1e-9)
 
 
 def test_the_ekf_score_is_the_expected_posterior_entropy():

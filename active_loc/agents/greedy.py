@@ -38,28 +38,50 @@ class GreedyInfoGainAgent:
     independent from scan to scan): staying or turning in place scores about as well as
     driving somewhere that would tell the modes apart.
     :class:`~active_loc.agents.horizon.HorizonPlannerAgent` looks further.
+
+    With ``hold`` > 1 an action is a motion primitive held for ``hold`` steps (continuous
+    robots; 5 steps of 0.2 s drive 1 m or turn 86 degrees), scored after the scan at its end,
+    and once chosen it is held for that long: the one-step choice of Burgard, Fox and Thrun,
+    whose actions were motions of any length, among longer motions.
+
+    Args:
+        n_hypotheses: simulated scans per action (particle and grid beliefs, the EKF).
+        max_particles: particle beliefs are resampled down to this many for planning.
+        hold: steps an action is held, and scored over (>= 1; continuous robots).
+        seed: the agent's own Generator (resampling, hypotheses and ties).
     """
 
-    def __init__(self, n_hypotheses: int = 4, max_particles: int = 500,
+    def __init__(self, n_hypotheses: int = 4, max_particles: int = 500, hold: int = 1,
                  seed: int | None = None) -> None:
-        if n_hypotheses < 1 or max_particles < 1:
-            raise ValueError("GreedyInfoGainAgent: n_hypotheses and max_particles must be >= 1")
+        if min(n_hypotheses, max_particles, hold) < 1:
+            raise ValueError("GreedyInfoGainAgent: n_hypotheses, max_particles and hold must "
+                             "be >= 1")
         self.n_hypotheses = int(n_hypotheses)
         self.max_particles = int(max_particles)
+        self.hold = int(hold)
         self.rng = np.random.default_rng(seed)
+        self._held: list[Any] = []  # the rest of the action being held
 
     def scores(self, view: Any) -> tuple[list[Any], np.ndarray]:
         """The candidate actions and their expected posterior entropies plus expected collision
-        penalties (nats)."""
+        penalties (nats), each action held for :attr:`hold` steps (continuous robots)."""
         actions = candidate_actions(view)
         belief = planning_belief(view.belief, self.max_particles, self.rng)
         seed = int(self.rng.integers(2**63))  # common random numbers across the actions
+        hold = 1 if hasattr(view, "outcomes") else self.hold
         values = np.array([
-            expected_cost_after(view, a, belief, self.n_hypotheses, seed) for a in actions
+            expected_cost_after(view, a, belief, self.n_hypotheses, seed, hold) for a in actions
         ])
         return actions, values
 
     def act(self, observation: Any, view: Any) -> Any:
+        if view.step == 0:
+            self._held = []  # a new episode
+        if self._held:
+            return self._held.pop()
         actions, values = self.scores(view)
         best = np.flatnonzero(values <= values.min() + 1e-9)
-        return actions[int(self.rng.choice(best))]
+        action = actions[int(self.rng.choice(best))]
+        if not hasattr(view, "outcomes"):
+            self._held = [action] * (self.hold - 1)
+        return action

@@ -92,10 +92,12 @@ def has_histogram_entropy(belief: Any) -> bool:
 
 
 def expected_cost_after(
-    view: Any, action: Any, belief: Any, n_hypotheses: int, seed: int
+    view: Any, action: Any, belief: Any, n_hypotheses: int, seed: int, hold: int = 1
 ) -> float:
     """The one-step score of ``action`` (nats, lower is better): the entropy expected after
-    it, plus ``collision_penalty * P(blocked)``.
+    it, plus ``collision_penalty * P(blocked)``. With ``hold`` > 1 (not in the maze) the
+    action is held for ``hold`` steps and scored after the scan at the end; the penalty counts
+    every blocked step.
 
     Without the penalty term a planner on a grid map happily drives into walls: the scan
     repeated from where it stopped still lowers the entropy of a filter that takes its beams
@@ -129,9 +131,9 @@ def expected_cost_after(
     rng = np.random.default_rng(seed)
     total = 0.0
     for _ in range(n_hypotheses):
-        after, pose, blocked = view.predict_hypothesis(action, belief, rng)
+        after, pose, blocked = view.predict_hypothesis(action, belief, rng, steps=hold)
         total += entropy_after_scan(view, after, pose, rng, start)
-        total += penalty if blocked else 0.0
+        total += penalty * blocked
     return total / n_hypotheses
 
 

@@ -114,23 +114,28 @@ class PlannerView:
         """
         out, pose, blocked = self.predict_hypothesis(action, belief, rng)
         z, visible = self.correct(out, pose, rng)
-        return out, z, visible, blocked
+        return out, z, visible, blocked > 0
 
     # --- the pieces of a hypothetical step (planners that roll out longer use them too) ------
 
     def predict_hypothesis(
-        self, action: object, belief: AnyBelief, rng: np.random.Generator
-    ) -> tuple[AnyBelief, NDArray[np.float64], bool]:
-        """The first half of :meth:`hypothesize`: a predicted copy of ``belief``, the pose
-        ``(3,)`` the hypothetical robot scans from, and whether its move was blocked."""
+        self, action: object, belief: AnyBelief, rng: np.random.Generator, steps: int = 1
+    ) -> tuple[AnyBelief, NDArray[np.float64], int]:
+        """The first half of :meth:`hypothesize`, with ``action`` held for ``steps`` steps: a
+        predicted copy of ``belief``, the pose ``(3,)`` the hypothetical robot scans from,
+        and on how many of the steps its move was blocked (grid maps; 0 on landmark maps)."""
         out = belief.copy()
         control = self.decode(action)
         if isinstance(self.map, OccupancyGrid):
-            pose, blocked = self.move(self.draw_pose(out, rng), control)
-            self.predict(out, control, blocked, rng)
+            pose, blocked = self.draw_pose(out, rng), 0
+            for _ in range(steps):
+                pose, bumped = self.move(pose, control)
+                self.predict(out, control, bumped, rng)
+                blocked += int(bumped)
             return out, pose, blocked
-        self.predict(out, control, False, rng)
-        return out, self.draw_pose(out, rng), False
+        for _ in range(steps):
+            self.predict(out, control, False, rng)
+        return out, self.draw_pose(out, rng), 0
 
     def draw_pose(self, belief: AnyBelief, rng: np.random.Generator) -> NDArray[np.float64]:
         """A pose ``(3,)`` drawn from ``belief`` with one draw of ``rng``: a Gaussian draw

@@ -265,6 +265,28 @@ SHARP = {"initial_belief": "gaussian", "initial_error_std": (0.0, 0.0, 0.0),
          "initial_belief_std": (0.03, 0.03, 0.02), "n_particles": 2000, "kld": False}
 
 
+def test_greedy_with_hold_scores_the_action_held_and_every_bump(monkeypatch):
+    """``hold`` steps of the action before the one scan, and the collision penalty for each
+    step that a wall blocks."""
+    env = gym.make("ActiveLoc/GridMCL-v0", action_type="discrete", **SHARP)
+    env.reset(seed=5)
+    view = env.unwrapped.planner_view()
+    seen = []
+
+    def correct(self, belief, pose, rng):
+        seen.append(pose)
+        return None, None
+
+    monkeypatch.setattr(type(view), "correct", correct)
+    forward = 1
+    monkeypatch.setattr(type(view), "move", lambda self, pose, control: (pose + 1.0, True))
+    score = expected_cost_after(view, forward, view.belief, 1, seed=0, hold=4)
+    assert len(seen) == 1 and score == pytest.approx(entropy_of(view.belief)
+                                                       + 4 * view.collision_penalty)
+    with pytest.raises(ValueError, match="hold"):
+        make_agent("greedy[hold=0]", env)
+
+
 @pytest.mark.parametrize(("env_id", "kwargs"), [
     ("ActiveLoc/GridMCL-v0", SHARP),
     ("ActiveLoc/LandmarkMCL-v0", SHARP),
@@ -338,9 +360,12 @@ def test_the_ekf_score_is_the_expected_posterior_entropy():
         expected, abs=1e-12)
 
 
-def test_the_horizon_planner_holds_each_macro_action_then_plans_again():
+@pytest.mark.parametrize("agent", [
+    HorizonPlannerAgent(horizon=1, hold=3, n_rollouts=1, seed=0),
+    GreedyInfoGainAgent(hold=3, seed=0),
+])
+def test_a_planner_with_hold_holds_each_action_then_plans_again(agent):
     env = gym.make("ActiveLoc/GridMCL-v0", n_particles=500, kld=False, action_type="discrete")
-    agent = HorizonPlannerAgent(horizon=1, hold=3, n_rollouts=1, seed=0)
     obs, _ = env.reset(seed=4)
     calls = []
     scores = agent.scores
@@ -364,13 +389,13 @@ def test_the_horizon_planner_scores_every_plan_of_macro_actions():
     view = env.unwrapped.planner_view()
     agent = HorizonPlannerAgent(horizon=2, hold=2, n_rollouts=2, seed=0)
     pose = view.draw_pose(view.belief, np.random.default_rng(0))
-    costs = agent._plan_costs(view, view.belief, pose, 2, [0, 0])
+    costs = agent._plan_costs(view, view.belief, entropy_of(view.belief), pose, 2, [0, 0])
     assert costs.shape == (len(MACRO_PRIMITIVES) ** 2,) and np.all(np.isfinite(costs))
     actions, values = agent.scores(view)
     assert actions == list(MACRO_PRIMITIVES) and values.shape == (len(MACRO_PRIMITIVES),)
     # each first macro-action scores as its best continuation, averaged over the rollouts
     by_rollout = {0: np.random.default_rng(1).random(25), 1: np.random.default_rng(2).random(25)}
-    agent._plan_costs = lambda view, belief, pose, depth, seed: by_rollout[seed[1]]
+    agent._plan_costs = lambda view, belief, entropy, pose, depth, seed: by_rollout[seed[1]]
     _, values = agent.scores(view)
     expected = (0.5 * (by_rollout[0] + by_rollout[1])).reshape(5, 5).min(axis=1)
     np.testing.assert_allclose(values, expected)

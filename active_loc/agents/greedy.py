@@ -68,9 +68,9 @@ class GreedyInfoGainAgent:
         actions = candidate_actions(view)
         belief = planning_belief(view.belief, self.max_particles, self.rng)
         seed = int(self.rng.integers(2**63))  # common random numbers across the actions
-        hold = 1 if hasattr(view, "outcomes") else self.hold
         values = np.array([
-            expected_cost_after(view, a, belief, self.n_hypotheses, seed, hold) for a in actions
+            expected_cost_after(view, a, belief, self.n_hypotheses, seed, self.hold)
+            for a in actions
         ])
         return actions, values
 

@@ -121,11 +121,10 @@ class HorizonPlannerAgent:
             action = primitive_action(view, primitive)
             control = view.decode(action)
             travel = self.travel_cost * travel_of(view, action)  # of one unblocked step
-            moved, at = belief.copy(), pose
+            moved = belief.copy()
+            at, blocked_steps = view.drive(moved, pose, control, self.hold, rng)
             cost = 0.0
-            for _ in range(self.hold):
-                at, blocked = view.move(at, control)
-                view.predict(moved, control, blocked, rng)
+            for blocked in blocked_steps:
                 cost += penalty if blocked else travel
             after = entropy_after_scan(view, moved, at, rng, entropy)
             cost += self.hold * after

@@ -87,7 +87,7 @@ def _wrong_type(default: Any, value: Any) -> str | None:
     if isinstance(default, bool):
         return None if isinstance(value, bool) else "true or false"
     if isinstance(default, int):
-        return None if is_number(value) and isinstance(value, int) else "an integer"
+        return None if isinstance(value, int) and not isinstance(value, bool) else "an integer"
     if isinstance(default, float):
         return None if is_number(value) else "a number"
     if isinstance(default, tuple) and not (

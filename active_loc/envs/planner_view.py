@@ -127,15 +127,23 @@ class PlannerView:
         out = belief.copy()
         control = self.decode(action)
         if isinstance(self.map, OccupancyGrid):
-            pose, blocked = self.draw_pose(out, rng), 0
-            for _ in range(steps):
-                pose, bumped = self.move(pose, control)
-                self.predict(out, control, bumped, rng)
-                blocked += int(bumped)
-            return out, pose, blocked
+            pose, blocked = self.drive(out, self.draw_pose(out, rng), control, steps, rng)
+            return out, pose, sum(blocked)
         for _ in range(steps):
             self.predict(out, control, False, rng)
         return out, self.draw_pose(out, rng), 0
+
+    def drive(self, belief: AnyBelief, pose: NDArray[np.float64], control: NDArray[np.float64],
+              steps: int, rng: np.random.Generator) -> tuple[NDArray[np.float64], list[bool]]:
+        """The hypothetical robot at ``pose`` ``(3,)`` driven ``steps`` times with ``control``
+        (:meth:`move`), ``belief`` predicted in place after each step as the env would
+        (:meth:`predict`). Returns the final pose and, per step, whether it was blocked."""
+        blocked = []
+        for _ in range(steps):
+            pose, bumped = self.move(pose, control)
+            self.predict(belief, control, bumped, rng)
+            blocked.append(bumped)
+        return pose, blocked
 
     def draw_pose(self, belief: AnyBelief, rng: np.random.Generator) -> NDArray[np.float64]:
         """A pose ``(3,)`` drawn from ``belief`` with one draw of ``rng``: a Gaussian draw

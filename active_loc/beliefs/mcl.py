@@ -28,13 +28,13 @@ Two extensions, both off by default:
   multinomial (the low-variance sampler needs the count in advance). Arrays keep the maximum
   size; the first ``n_active`` rows are the particle set.
 
-Randomness: every draw comes from the ``numpy.random.Generator`` passed in, drawn as arrays in
-Python and handed to the kernels, with a fixed number of draws per call (``3 K_max`` normals per
-predict, ``K_max + 1`` uniforms per update, plus ``5 K_max`` with augmentation), so that runs
-are reproducible and planners can use common random numbers. Only a re-initialization draws
-extra (``4 K_max`` uniforms). An update that does not resample skips its uniforms
-(:func:`skip_uniforms`: the stream moves on as if they were drawn), and the draws go into
-arrays the belief reuses, not megabytes allocated per step.
+Randomness: every draw comes from the ``numpy.random.Generator`` passed in, and a step's draws
+scale with the ACTIVE particles K, not the maximum: ``predict`` draws ``3 K`` normals (numpy's
+ziggurat, into an array the belief reuses), ``update`` one 64-bit key, from which a resampling
+computes exactly the uniforms it uses (:mod:`active_loc.random_streams`; KLD sampling knows its
+count only as it goes). The same Generator state gives the same step, so runs are reproducible
+and planners get common random numbers. An initialization draws ``4 K_max`` uniforms (uniform)
+or ``3 K_max`` normals (Gaussian): there every particle is active.
 
 The map enters as a :class:`FreeSpace`: an occupancy grid in plain arrays (``values (ny, nx)``
 int8, FREE = 0, OCCUPIED = 100, UNKNOWN = -1, row 0 at the bottom, origin the world pose of the
@@ -69,6 +69,7 @@ from active_loc.beliefs.particle_stats import (
 )
 from active_loc.geometry import wrap_angle, wrap_angle_scalar
 from active_loc.motion import UnicycleModel
+from active_loc.random_streams import draw_key, fill_uniforms, stream_uniform
 from active_loc.sensors.landmarks import (
     RANGE_BEARING,
     RELATIVE_POSITION,
@@ -82,6 +83,13 @@ OCCUPIED = 100
 UNKNOWN = -1
 
 RESAMPLING_SCHEMES = ("systematic", "stratified")
+
+# lanes of a resampling's stream (active_loc.random_streams): which particle to copy, the
+# stochastic rounding of the injected count, whether KLD's draw injects, and 4 for a pose
+LANE_SELECT = 0
+LANE_ROUND = 1
+LANE_DECIDE = 2
+LANE_POSE = 3
 
 #: AMCL's KLD bin size (dx m, dy m, dtheta rad): 0.5 m, 0.5 m, 10 degrees
 KLD_BINS = (0.5, 0.5, math.radians(10.0))
@@ -254,34 +262,52 @@ def points_free(
             out[i] = x_min <= x <= x_max and y_min <= y <= y_max
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def free_pose_into(
+    out: NDArray, m: int, u0: float, u1: float, u2: float, u3: float, geom: NDArray,
+    is_grid: bool, free_cells: NDArray,
+) -> None:
+    """Row ``m`` of ``out`` ``(M, 3)`` = a pose uniform over the free space and the headings,
+    from four uniforms in [0, 1): ``u0`` picks the free cell (grid) or x (box), ``u1``, ``u2``
+    jitter inside the cell (grid) or ``u1`` is y (box), ``u3`` the heading."""
+    if is_grid:
+        n_free = free_cells.shape[0]
+        f = int(u0 * n_free)
+        if f >= n_free:
+            f = n_free - 1
+        gx = free_cells[f, 0] + _EDGE + u1 * (1.0 - 2.0 * _EDGE)
+        gy = free_cells[f, 1] + _EDGE + u2 * (1.0 - 2.0 * _EDGE)
+        out[m, 0] = geom[0] + geom[4] * (geom[2] * gx - geom[3] * gy)
+        out[m, 1] = geom[1] + geom[4] * (geom[3] * gx + geom[2] * gy)
+    else:
+        out[m, 0] = geom[5] + u0 * (geom[7] - geom[5])
+        out[m, 1] = geom[6] + u1 * (geom[8] - geom[6])
+    th = -np.pi + 2.0 * np.pi * u3
+    out[m, 2] = th if th < np.pi else -np.pi
+
+
 @numba.njit(cache=True, nogil=True)
 def sample_free_poses(
     u: NDArray, values: NDArray, geom: NDArray, is_grid: bool, free_cells: NDArray, out: NDArray
 ) -> None:
-    """Poses ``(M, 3)`` uniform over the free space and the headings, from uniforms ``u``.
-
-    Args:
-        u: ``(M, >= 4)`` uniforms in [0, 1): column 0 picks the free cell (grid) or x (box),
-            columns 1-2 jitter inside the cell (grid) or column 1 is y (box), column 3 the
-            heading. Extra columns are ignored.
-        free_cells: ``(F, 2)`` ``(ix, iy)`` of the free cells (grid only).
-        out: ``(M, 3)`` out.
-    """
-    n_free = free_cells.shape[0]
+    """Poses ``(M, 3)`` uniform over the free space and the headings, from uniforms ``u``
+    ``(M, >= 4)`` (the columns of :func:`free_pose_into`; extra columns are ignored).
+    ``free_cells`` ``(F, 2)`` holds ``(ix, iy)`` of the free cells (grid only)."""
     for m in range(out.shape[0]):
-        if is_grid:
-            f = int(u[m, 0] * n_free)
-            if f >= n_free:
-                f = n_free - 1
-            gx = free_cells[f, 0] + _EDGE + u[m, 1] * (1.0 - 2.0 * _EDGE)
-            gy = free_cells[f, 1] + _EDGE + u[m, 2] * (1.0 - 2.0 * _EDGE)
-            out[m, 0] = geom[0] + geom[4] * (geom[2] * gx - geom[3] * gy)
-            out[m, 1] = geom[1] + geom[4] * (geom[3] * gx + geom[2] * gy)
-        else:
-            out[m, 0] = geom[5] + u[m, 0] * (geom[7] - geom[5])
-            out[m, 1] = geom[6] + u[m, 1] * (geom[8] - geom[6])
-        th = -np.pi + 2.0 * np.pi * u[m, 3]
-        out[m, 2] = th if th < np.pi else -np.pi
+        free_pose_into(out, m, u[m, 0], u[m, 1], u[m, 2], u[m, 3], geom, is_grid, free_cells)
+
+
+@numba.njit(cache=True, nogil=True)
+def stream_free_poses(
+    key: np.uint64, geom: NDArray, is_grid: bool, free_cells: NDArray, out: NDArray
+) -> None:
+    """Poses ``(M, 3)`` uniform over the free space, number m from index m of the pose lanes
+    of the stream ``key`` (:mod:`active_loc.random_streams`)."""
+    for m in range(out.shape[0]):
+        free_pose_into(out, m, stream_uniform(key, m, LANE_POSE),
+                       stream_uniform(key, m, LANE_POSE + 1),
+                       stream_uniform(key, m, LANE_POSE + 2),
+                       stream_uniform(key, m, LANE_POSE + 3), geom, is_grid, free_cells)
 
 
 # --- motion --------------------------------------------------------------------------------------
@@ -456,11 +482,9 @@ def stratified_resample(log_w: NDArray, u: NDArray, out: NDArray) -> None:
 def resample_particles(
     particles: NDArray,
     log_w: NDArray,
-    u_sel: NDArray,
+    key: np.uint64,
     stratified: bool,
     inject_prob: float,
-    u_inj: NDArray,
-    values: NDArray,
     geom: NDArray,
     is_grid: bool,
     free_cells: NDArray,
@@ -468,32 +492,34 @@ def resample_particles(
 ) -> int:
     """Fixed-count resampling with optional injection of uniform free poses (augmented MCL).
 
-    ``n_inj = floor(inject_prob K + u_sel[-1])`` (stochastic rounding, unbiased) rows of
-    ``out`` get uniform free poses from ``u_inj``; the other ``K - n_inj`` are drawn from the
-    weighted set, systematically (``u_sel[0]``) or stratified (``u_sel[:K - n_inj]``).
+    ``n_inj = floor(inject_prob K + u)`` (stochastic rounding, unbiased) rows of ``out`` get
+    uniform free poses; the other ``K - n_inj`` are drawn from the weighted set, systematically
+    (one uniform) or stratified (one per stratum). Every uniform is a number of the stream
+    ``key`` (:mod:`active_loc.random_streams`): as many as the step uses.
 
     Args:
         particles: ``(K, 3)``; log_w: ``(K,)``.
-        u_sel: ``(>= K + 1,)`` uniforms.
+        key: the step's stream key.
         inject_prob: fraction of random particles in [0, 1].
-        u_inj: ``(>= n_inj, >= 4)`` uniforms for the random poses (may be empty when
-            ``inject_prob`` is 0).
         out: ``(K, 3)`` out.
 
     Returns:
         The number of injected particles.
     """
     k = particles.shape[0]
-    n_inj = int(np.floor(inject_prob * k + u_sel[u_sel.shape[0] - 1]))
-    n_inj = min(max(n_inj, 0), k)
-    if n_inj > 0:
-        sample_free_poses(u_inj[:n_inj], values, geom, is_grid, free_cells, out[:n_inj])
+    n_inj = 0
+    if inject_prob > 0.0:
+        n_inj = int(np.floor(inject_prob * k + stream_uniform(key, 0, LANE_ROUND)))
+        n_inj = min(max(n_inj, 0), k)
+        stream_free_poses(key, geom, is_grid, free_cells, out[:n_inj])
     m = k - n_inj
     idx = np.empty(m, dtype=np.int64)
     if stratified:
-        stratified_resample(log_w, u_sel, idx)
+        u = np.empty(m)
+        fill_uniforms(key, LANE_SELECT, u)
+        stratified_resample(log_w, u, idx)
     else:
-        systematic_resample(log_w, u_sel[0], idx)
+        systematic_resample(log_w, stream_uniform(key, 0, LANE_SELECT), idx)
     for j in range(m):
         out[n_inj + j, 0] = particles[idx[j], 0]
         out[n_inj + j, 1] = particles[idx[j], 1]
@@ -505,10 +531,8 @@ def resample_particles(
 def kld_resample(
     particles: NDArray,
     log_w: NDArray,
-    u_sel: NDArray,
+    key: np.uint64,
     inject_prob: float,
-    u_inj: NDArray,
-    values: NDArray,
     geom: NDArray,
     is_grid: bool,
     free_cells: NDArray,
@@ -521,14 +545,14 @@ def kld_resample(
 ) -> tuple:
     """KLD-sampling resampling (Fox 2003), as AMCL's ``pf_update_resample``.
 
-    Draws particles one at a time (multinomial from ``u_sel[n]``; with probability
-    ``inject_prob``, decided by ``u_inj[n, 4]``, a uniform free pose from ``u_inj[n, :4]``),
-    counts the occupied bins of size ``bins`` ``(dx, dy, dtheta)``, and stops once the count
-    reaches :func:`kld_limit` of the bins (or ``max_particles``).
+    Draws particles one at a time (multinomial; with probability ``inject_prob`` a uniform
+    free pose instead), counts the occupied bins of size ``bins`` ``(dx, dy, dtheta)``, and
+    stops once the count reaches :func:`kld_limit` of the bins (or ``max_particles``). Draw n
+    takes number n of the select, decide and pose lanes of the stream ``key``, so the step
+    uses as many uniforms as it draws particles.
 
     Args:
-        particles: ``(K, 3)``; log_w: ``(K,)``; u_sel: ``(>= max_particles,)`` uniforms;
-        u_inj: ``(max_particles, 5)`` uniforms (may be empty when ``inject_prob`` is 0);
+        particles: ``(K, 3)``; log_w: ``(K,)``; key: the step's stream key;
         out: ``(max_particles, 3)`` out; the first ``count`` rows are the new set.
 
     Returns:
@@ -537,10 +561,6 @@ def kld_resample(
     k = particles.shape[0]
     cdf = np.empty(k)
     total, last = _cumulative_weights(log_w, cdf)
-    injected = np.empty((0, 3))
-    if inject_prob > 0.0:
-        injected = np.empty((max_particles, 3))
-        sample_free_poses(u_inj, values, geom, is_grid, free_cells, injected)
     dx, dy, dth = bins[0], bins[1], bins[2]
     size = table_size(max_particles)
     mask = size - 1
@@ -551,17 +571,22 @@ def kld_resample(
     n_inj = 0
     limit = kld_limit(0, min_particles, max_particles, err, z)
     while count < max_particles:
-        if inject_prob > 0.0 and u_inj[count, 4] < inject_prob:
-            x, y, th = injected[count, 0], injected[count, 1], injected[count, 2]
+        if inject_prob > 0.0 and stream_uniform(key, count, LANE_DECIDE) < inject_prob:
+            free_pose_into(out, count, stream_uniform(key, count, LANE_POSE),
+                           stream_uniform(key, count, LANE_POSE + 1),
+                           stream_uniform(key, count, LANE_POSE + 2),
+                           stream_uniform(key, count, LANE_POSE + 3), geom, is_grid,
+                           free_cells)
             n_inj += 1
         else:
-            i = np.searchsorted(cdf, u_sel[count] * total, side="right")
+            i = np.searchsorted(cdf, stream_uniform(key, count, LANE_SELECT) * total,
+                                side="right")
             if i > last:
                 i = last
-            x, y, th = particles[i, 0], particles[i, 1], particles[i, 2]
-        out[count, 0] = x
-        out[count, 1] = y
-        out[count, 2] = th
+            out[count, 0] = particles[i, 0]
+            out[count, 1] = particles[i, 1]
+            out[count, 2] = particles[i, 2]
+        x, y, th = out[count, 0], out[count, 1], out[count, 2]
         # insert the bin (open addressing; see particle_stats.assign_bins)
         b0, b1, b2 = pose_bin(x, y, th, dx, dy, dth)
         j = bin_hash(b0, b1, b2, mask)
@@ -705,26 +730,6 @@ def landmark_log_likelihood(
 # --- the belief ----------------------------------------------------------------------------------
 
 
-def skip_uniforms(rng: np.random.Generator, count: int) -> None:
-    """Move ``rng`` on exactly as ``rng.random(count)`` would, without making the numbers.
-
-    Each float64 uniform is one 64-bit output of the bit generator, so PCG64 (gymnasium's and
-    ``default_rng``'s) and PCG64DXSM just advance by ``count``, keeping the buffered half of
-    a 32-bit draw that ``random`` leaves alone and ``advance`` would drop. Other bit
-    generators draw the numbers.
-    """
-    bit_generator = rng.bit_generator
-    if not isinstance(bit_generator, (np.random.PCG64, np.random.PCG64DXSM)):
-        rng.random(count)
-        return
-    before = bit_generator.state
-    bit_generator.advance(count)
-    if before["has_uint32"]:
-        after = bit_generator.state
-        after["has_uint32"], after["uinteger"] = before["has_uint32"], before["uinteger"]
-        bit_generator.state = after
-
-
 def _log_add(a: float, b: float) -> float:
     """``log(exp(a) + exp(b))`` for floats, ``-inf`` allowed."""
     if a == -math.inf:
@@ -857,7 +862,7 @@ class MCLBelief:
         self._log_w_slow: float | None = None
         self._log_w_fast: float | None = None
         self._initialized = False
-        #: reusable arrays for the K_max-sized draws of a step (see :meth:`_buffer`)
+        #: reusable arrays for a step's draws (see :meth:`_buffer`)
         self._buffers: dict[str, NDArray[np.float64]] = {}
         self.reinitialized = False
         self.n_reinitializations = 0
@@ -1018,8 +1023,9 @@ class MCLBelief:
     def predict(self, control: ArrayLike, rng: np.random.Generator) -> None:
         """Motion update with control ``(2,)`` = (V m/s, omega rad/s) and the map prior.
 
-        Draws ``3 K_max`` normals. Particles that land outside the free space get weight 0;
-        if all would, every particle keeps its pre-move pose and weight (``blocked`` is set).
+        Draws ``3 K`` normals for the K active particles. Particles that land outside the free
+        space get weight 0; if all would, every particle keeps its pre-move pose and weight
+        (``blocked`` is set).
         """
         self._check_initialized()
         u = np.asarray(control, dtype=np.float64).reshape(-1)
@@ -1027,12 +1033,12 @@ class MCLBelief:
             raise ValueError(f"MCLBelief.predict: control must be 2 finite numbers (V m/s, "
                              f"omega rad/s), got {control}")
         self.reinitialized = False
-        normals = rng.standard_normal(out=self._buffer("normals", (1, self.n_particles, 3)))
         n = self.n_active
+        normals = rng.standard_normal(out=self._buffer("normals", (self.n_particles, 3))[:n])
         before = self._particles[0, :n].copy()
         before_log_w = self._log_weights[0, :n].copy()
-        sample_motion(self._particles, self._counts, u.reshape(1, 2), self.motion.dt, normals,
-                      self.motion.noise_root)
+        sample_motion(self._particles, self._counts, u.reshape(1, 2), self.motion.dt,
+                      normals[None], self.motion.noise_root)
         fs = self.free_space
         mask_free_space(self._particles, self._log_weights, self._counts, fs.values, fs.geom,
                         fs.is_grid)
@@ -1050,8 +1056,9 @@ class MCLBelief:
         in the order of :attr:`particles`), then resampling when ESS < threshold * K.
 
         ``-inf`` and huge negative values are fine. If no particle keeps a positive weight the
-        belief is re-initialized uniformly (``reinitialized`` is set). Draws ``K_max + 1``
-        uniforms (plus ``5 K_max`` with augmentation) whether or not it resamples.
+        belief is re-initialized uniformly (``reinitialized`` is set). Draws one key from
+        ``rng`` whether or not it resamples; a resampling computes its uniforms from it
+        (:mod:`active_loc.random_streams`), as many as it uses.
 
         Raises:
             ValueError: on a wrong shape, NaN or ``+inf``.
@@ -1069,10 +1076,10 @@ class MCLBelief:
         self.resampled = False
         self.last_injected = 0
         self.last_injection_rate = 0.0
+        key = draw_key(rng)
         log_ev = add_log_likelihood(self._log_weights[0, :n], ll)
         self.last_log_evidence = log_ev
         if log_ev == -math.inf:
-            self._skip_resampling_draws(rng)
             self._reinitialize(rng)
             return
         # w_slow += alpha_slow (w_avg - w_slow), and w_fast likewise, in log space
@@ -1084,11 +1091,8 @@ class MCLBelief:
             fast = math.log1p(-self.alpha_fast) if self.alpha_fast < 1.0 else -math.inf
             self._log_w_fast = _log_add(fast + self._log_w_fast,
                                         math.log(self.alpha_fast) + log_ev)
-        # the resampling uniforms come next in the stream whether or not they are used
         if effective_sample_size(self._log_weights[0, :n]) < self.resample_threshold * n:
-            self._resample(*self._draw_resampling(rng))
-        else:
-            self._skip_resampling_draws(rng)
+            self._resample(key)
 
     def update_landmarks(
         self,
@@ -1102,12 +1106,10 @@ class MCLBelief:
         """:meth:`update` with :func:`landmark_log_likelihood` of ``sensor`` (its kind and R);
         z ``(N, 2)``, visible ``(N,)``, landmarks ``(L, 2)``. When no measurement is visible
         the belief is left as it is (an empty scan carries no information, and a likelihood of
-        1 would bias w_slow / w_fast), but the same uniforms are drawn as by an update, so the
-        number of draws per call stays fixed."""
+        1 would bias w_slow / w_fast); nothing is drawn then."""
         vis = np.asarray(visible, dtype=np.bool_).reshape(-1)
         if not vis.any():
             self._check_initialized()
-            self._skip_resampling_draws(rng)
             self.resampled = False
             self.last_injected = 0
             self.last_injection_rate = 0.0
@@ -1116,33 +1118,22 @@ class MCLBelief:
                                      sensor.noise_cov, known_correspondence)
         self.update(ll, rng)
 
-    def _draw_resampling(self, rng: np.random.Generator) -> tuple[NDArray, NDArray]:
-        """The uniforms of a resampling: ``K_max + 1`` to select, ``(K_max, 5)`` to inject
-        (none without augmentation)."""
-        u_sel = rng.random(out=self._buffer("u_sel", (self.n_particles + 1,)))
-        u_inj = (rng.random(out=self._buffer("u_inj", (self.n_particles, 5))) if self.augmented
-                 else np.empty((0, 5)))
-        return u_sel, u_inj
-
-    def _skip_resampling_draws(self, rng: np.random.Generator) -> None:
-        """Move ``rng`` on past the uniforms of :meth:`_draw_resampling` without making them."""
-        skip_uniforms(rng, self.n_particles + 1 + (5 * self.n_particles if self.augmented else 0))
-
     def _buffer(self, name: str, shape: tuple[int, ...]) -> NDArray[np.float64]:
-        """This belief's reusable float64 array ``name``: a step's K_max-sized draws go into
-        the same memory every time instead of megabytes allocated and freed per call."""
+        """This belief's reusable float64 array ``name`` (K_max rows): a step's draws go into
+        its first rows every time instead of memory allocated and freed per call."""
         buffer = self._buffers.get(name)
         if buffer is None:
             buffer = self._buffers[name] = np.empty(shape)
         return buffer
 
     def resample(self, rng: np.random.Generator) -> None:
-        """Resample now, whatever the ESS (with injection and KLD when on); draws as
+        """Resample now, whatever the ESS (with injection and KLD when on); draws one key, as
         :meth:`update` does."""
         self._check_initialized()
-        self._resample(*self._draw_resampling(rng))
+        self._resample(draw_key(rng))
 
-    def _resample(self, u_sel: NDArray, u_inj: NDArray) -> None:
+    def _resample(self, key: np.uint64) -> None:
+        """Resample with the uniforms of the stream ``key``."""
         n = self.n_active
         src = self._particles[0, :n]
         lw = self._log_weights[0, :n]
@@ -1151,15 +1142,14 @@ class MCLBelief:
         out = self._buffer("resampled", (self.n_particles, 3))
         if self.kld:
             new_n, n_inj = kld_resample(
-                src, lw, u_sel, p_inj, u_inj, fs.values, fs.geom, fs.is_grid, fs.free_cells,
-                self.kld_bins, self.min_particles, self.n_particles, self.kld_err, self.kld_z,
-                out,
+                src, lw, key, p_inj, fs.geom, fs.is_grid, fs.free_cells, self.kld_bins,
+                self.min_particles, self.n_particles, self.kld_err, self.kld_z, out,
             )
         else:
             new_n = n
             n_inj = resample_particles(
-                src, lw, u_sel, self.resampling == "stratified", p_inj, u_inj, fs.values,
-                fs.geom, fs.is_grid, fs.free_cells, out[:n],
+                src, lw, key, self.resampling == "stratified", p_inj, fs.geom, fs.is_grid,
+                fs.free_cells, out[:n],
             )
         self._particles[0, :new_n] = out[:new_n]
         self._particles[0, new_n:] = 0.0

@@ -29,7 +29,6 @@ from active_loc.beliefs.mcl import (
     landmark_log_likelihood,
     mask_free_space,
     sample_motion,
-    skip_uniforms,
     stratified_resample,
     systematic_resample,
 )
@@ -225,52 +224,49 @@ def test_belief_runs_reproducible(kld):
 
 @pytest.mark.parametrize("bit_generator", [np.random.PCG64, np.random.MT19937])
 @pytest.mark.parametrize("augmented", [False, True])
-def test_fixed_number_of_draws_per_call(bit_generator, augmented):
-    """predict draws 3 K_max normals, update K_max + 1 uniforms (plus 5 K_max with
-    augmentation), whatever the state: an update that does not resample skips them, one that
-    does draws them, and the stream ends up in the same place."""
+@pytest.mark.parametrize("kld", [False, True])
+def test_draws_scale_with_the_active_particles(bit_generator, augmented, kld):
+    """predict draws 3 K normals for the K ACTIVE particles (not the maximum), update one key,
+    whether or not it resamples, with KLD and injection or without."""
     model = UnicycleModel(0.1, 0.01 * np.eye(3))
-    b = MCLBelief(BOX10, model, 300, augmented=augmented)
-    b.initialize_gaussian([5.0, 5.0, 0.0], 0.1 * np.eye(3), np.random.default_rng(0))
+    b = MCLBelief(BOX10, model, 3000, augmented=augmented, kld=kld, min_particles=100)
+    rng0 = np.random.default_rng(0)
+    b.initialize_gaussian([5.0, 5.0, 0.0], 0.001 * np.eye(3), rng0)
+    if kld:
+        b.resample(rng0)  # a tight Gaussian: KLD keeps far fewer than 3000
+    k = b.n_active
+    assert (k < 3000) == kld
     rng = np.random.Generator(bit_generator(9))
     ref = np.random.Generator(bit_generator(9))
-    uniforms = 301 + (1500 if augmented else 0)
     b.predict([1.0, 0.0], rng)
-    ref.standard_normal((1, 300, 3))
-    b.update(np.zeros(300), rng)  # no resampling needed, but the stream moves on
+    ref.standard_normal((k, 3))
+    assert rng.random() == ref.random()
+    b.update(np.zeros(k), rng)  # no resampling needed
     assert not b.resampled
-    ref.random(uniforms)
+    ref.bit_generator.random_raw()
     assert rng.random() == ref.random()
-    b.update(np.where(np.arange(300) < 30, 0.0, -50.0), rng)  # ESS 30 of 300: resamples
+    b.update(np.where(np.arange(k) < 30, 0.0, -50.0), rng)  # ESS 30 of K: resamples
     assert b.resampled
-    ref.random(uniforms)
+    ref.bit_generator.random_raw()
     assert rng.random() == ref.random()
 
 
-@pytest.mark.parametrize("bit_generator", [np.random.PCG64, np.random.PCG64DXSM,
-                                           np.random.MT19937, np.random.Philox])
-@pytest.mark.parametrize("before", ["nothing", "int32", "float32", "small int"])
-def test_skip_uniforms_moves_the_stream_as_drawing_them(bit_generator, before):
-    """skip_uniforms(rng, n) leaves rng where rng.random(n) would, a buffered half of a
-    32-bit draw included (every later kind of draw then agrees)."""
-
-    def draws_after(rng: np.random.Generator) -> list:
-        return [rng.integers(0, 10, 5).tolist(), rng.random(3).tolist(),
-                rng.standard_normal(4).tolist(), rng.integers(0, 2**40, 3).tolist(),
-                rng.random(2, dtype=np.float32).tolist(), int(rng.integers(8, 16))]
-
-    for count in (1, 2, 301, 100_001):
-        drawn, skipped = (np.random.Generator(bit_generator(count)) for _ in range(2))
-        for rng in (drawn, skipped):
-            if before == "int32":
-                rng.integers(0, 7, 3, dtype=np.int32)
-            elif before == "float32":
-                rng.random(3, dtype=np.float32)
-            elif before == "small int":
-                rng.integers(8, 16)
-        drawn.random(count)
-        skip_uniforms(skipped, count)
-        assert draws_after(drawn) == draws_after(skipped)
+def test_a_copy_draws_what_the_original_draws():
+    """Common random numbers: a copy and its original, stepped with equal Generators, end
+    with equal particles, resampling included."""
+    model = UnicycleModel(0.1, 0.01 * np.eye(3))
+    b = MCLBelief(BOX10, model, 2000, augmented=True, kld=True, min_particles=100)
+    b.initialize_uniform(np.random.default_rng(1))
+    c = b.copy()
+    sensor = RangeBearingSensor.from_std(0.3, np.deg2rad(5.0))
+    z, vis = sensor.measure(np.array([3.0, 4.0, 0.5]), DISTINCT_LANDMARKS,
+                            np.random.default_rng(2))
+    for belief in (b, c):
+        rng = np.random.default_rng(3)
+        belief.predict([0.5, 0.1], rng)
+        belief.update_landmarks(z, vis, DISTINCT_LANDMARKS, sensor, rng)
+        assert belief.resampled
+    np.testing.assert_array_equal(b.particles, c.particles)
 
 
 # --- motion and the map --------------------------------------------------------------------------

@@ -1,0 +1,248 @@
+"""The multimodal ids against the code before the batch-first simulator, in one run.
+
+For every MCL, grid and maze id this times two versions of the package in turns, each in a
+subprocess with its source first on ``sys.path``:
+
+* ``base``: the commit before the simulator work (:data:`BASE_COMMIT`), checked out as a git
+  worktree in the temporary directory (made once, reused);
+* ``head``: this checkout.
+
+Each figure is the best of ``--repeats`` timings of the same work (the same seeds and the same
+random actions, drawn up front), and the two versions alternate, so that the machine's drift
+over minutes (about 25% on a shared 2-core host) lands on both. Reported:
+
+* ``single``: one ``gymnasium.make(id)`` env, ``--steps`` random actions, the episodes reset
+  inside the timed loop (the first with seed 0);
+* ``native n``: ``gymnasium.make_vec(id, n, vectorization_mode="vector_entry_point")``,
+  NEXT_STEP autoreset, env-steps per second (n per call), and for Maze-v0 the same against
+  gymnasium's ``SyncVectorEnv``;
+* ``reset``: milliseconds per ``reset()`` of a single env, with a new map every episode and
+  (head only, ``map_pool``) with a pool of maps;
+* ``split``: where a head step's time goes (:func:`step_split`).
+
+It measures and asserts nothing; the targets are printed beside the figures.
+
+    python benchmarks/bench_multimodal.py [--repeats 3] [--ids LandmarkMCL-v0,...]
+        [--parts single,native,reset,split] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+#: the last commit before the batch-first simulator (draws, cores, map pool)
+BASE_COMMIT = "dd08010"
+IDS = (
+    "ActiveLoc/LandmarkMCL-v0",
+    "ActiveLoc/GridMCL-v0",
+    "ActiveLoc/GridMCLKidnapped-v0",
+    "ActiveLoc/GridMCLDynamic-v0",
+    "ActiveLoc/GridMarkov-v0",
+    "ActiveLoc/Maze-v0",
+)
+TARGETS = {
+    "ActiveLoc/LandmarkMCL-v0": "single >= 5x base",
+    "ActiveLoc/GridMCL-v0": "single >= 2x base",
+    "ActiveLoc/GridMarkov-v0": "single >= 2x base",
+    "ActiveLoc/Maze-v0": "native n=64 >= 3x SyncVectorEnv",
+}
+
+
+# --- worker: runs inside one version's interpreter --------------------------------------------
+
+
+def _actions(space: Any, count: int, seed: int) -> list:
+    import gymnasium as gym
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    if isinstance(space, gym.spaces.Discrete):
+        return rng.integers(space.n, size=count).tolist()
+    return list(rng.uniform(space.low, space.high, (count, *space.shape)).astype(space.dtype))
+
+
+def single_rate(env_id: str, steps: int, repeats: int, kwargs: dict) -> dict:
+    """Best-of-``repeats`` steps per second of one env over ``steps`` random actions."""
+    import gymnasium as gym
+
+    env = gym.make(env_id, **kwargs)
+    actions = _actions(env.action_space, steps, 0)
+
+    def run(seed: int, batch: list) -> float:
+        env.reset(seed=seed)
+        start = time.perf_counter()
+        for action in batch:
+            _, _, terminated, truncated, _ = env.step(action)
+            if terminated or truncated:
+                env.reset()
+        return time.perf_counter() - start
+
+    run(100, actions[: min(20, steps)])  # warm-up: numba kernels compiled or loaded
+    best = min(run(0, actions) for _ in range(repeats))
+    env.close()
+    return {"steps_per_s": steps / best}
+
+
+def vector_rate(env_id: str, n: int, calls: int, repeats: int, kwargs: dict,
+                sync: bool = False) -> dict:
+    """Best-of-``repeats`` env-steps per second of the native vector env (or, with ``sync``,
+    gymnasium's SyncVectorEnv) over ``calls`` batched random steps."""
+    import gymnasium as gym
+    import numpy as np
+
+    mode = "sync" if sync else "vector_entry_point"
+    envs = gym.make_vec(env_id, n, vectorization_mode=mode, **kwargs)
+    single = envs.single_action_space
+    actions = np.array(_actions(single, calls * n, 1)).reshape(calls, n, *single.shape)
+
+    def run(seed: int, count: int) -> float:
+        envs.reset(seed=seed)
+        start = time.perf_counter()
+        for t in range(count):
+            envs.step(actions[t])
+        return time.perf_counter() - start
+
+    run(100, min(2, calls))
+    best = min(run(0, calls) for _ in range(repeats))
+    envs.close()
+    return {"steps_per_s": calls * n / best}
+
+
+def reset_cost(env_id: str, resets: int, repeats: int, kwargs: dict) -> dict:
+    """Best-of-``repeats`` milliseconds per ``reset()`` (each a new episode)."""
+    import gymnasium as gym
+
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=100)
+    best = float("inf")
+    for _ in range(repeats):
+        env.reset(seed=0)
+        start = time.perf_counter()
+        for _ in range(resets):
+            env.reset()
+        best = min(best, (time.perf_counter() - start) / resets)
+    env.close()
+    return {"ms": best * 1e3}
+
+
+def step_split(env_id: str, steps: int, kwargs: dict) -> dict:
+    """Seconds per step spent in each part of the head's step (its ``profile`` hooks)."""
+    from active_loc.envs.profiling import profile_steps
+
+    return profile_steps(env_id, steps, kwargs)
+
+
+def worker(request: dict) -> dict:
+    import active_loc  # noqa: F401  (registers the ids)
+
+    kind = request.pop("kind")
+    return {"single": single_rate, "vector": vector_rate, "reset": reset_cost,
+            "split": step_split}[kind](**request)
+
+
+# --- driver ---------------------------------------------------------------------------------
+
+
+def base_checkout() -> Path:
+    """The worktree of :data:`BASE_COMMIT` (made on first use)."""
+    path = Path(tempfile.gettempdir()) / f"active_loc-base-{BASE_COMMIT}"
+    if not (path / "active_loc").is_dir():
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "prune"], check=True)
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "--force",
+                        str(path), BASE_COMMIT], check=True, capture_output=True)
+    return path
+
+
+def measure(source: Path, request: dict) -> dict:
+    """Run one worker request with ``source`` first on the path; its result."""
+    env = {**os.environ, "PYTHONPATH": str(source), "OMP_NUM_THREADS": "1"}
+    code = ("import json, sys; sys.path.insert(0, sys.argv[1]); "
+            "sys.path.insert(0, sys.argv[2]); import bench_multimodal as b; "
+            "print(json.dumps(b.worker(json.loads(sys.argv[3]))))")
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(source), str(Path(__file__).parent),
+         json.dumps(request)], env=env, capture_output=True, text=True, cwd=str(source),
+    )
+    if out.returncode != 0:
+        return {"error": out.stderr.strip().splitlines()[-1] if out.stderr else "failed"}
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _steps_for(env_id: str, args: argparse.Namespace) -> int:
+    return args.maze_steps if env_id.endswith("Maze-v0") else args.steps
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--steps", type=int, default=300, help="single-env steps, MCL and grid")
+    parser.add_argument("--maze-steps", type=int, default=20000)
+    parser.add_argument("--calls", type=int, default=12, help="vector steps, MCL and grid")
+    parser.add_argument("--maze-calls", type=int, default=300)
+    parser.add_argument("--resets", type=int, default=5)
+    parser.add_argument("--ids", default=",".join(i.split("/")[1] for i in IDS))
+    parser.add_argument("--parts", default="single,native,reset,split")
+    parser.add_argument("--json", default=None)
+    args = parser.parse_args()
+    ids = [f"ActiveLoc/{name}" for name in args.ids.split(",")]
+    parts = args.parts.split(",")
+    versions = {"base": base_checkout(), "head": ROOT}
+    results: list[dict] = []
+
+    def report(row: dict) -> None:
+        results.append(row)
+        print(json.dumps(row), flush=True)
+        if args.json:
+            Path(args.json).write_text(json.dumps(results, indent=1))
+
+    def compare(env_id: str, label: str, request: dict, head_only: dict | None = None) -> None:
+        row: dict[str, Any] = {"id": env_id, "case": label}
+        for name, source in versions.items():
+            row[name] = measure(source, dict(request))
+        if head_only is not None:
+            row["head_variant"] = measure(ROOT, dict(head_only))
+        base, head = row["base"], row["head"]
+        key = "steps_per_s" if "steps_per_s" in head else "ms"
+        if key in base and key in head:
+            row["ratio"] = (head[key] / base[key] if key == "steps_per_s"
+                            else base[key] / head[key])
+        report(row)
+
+    for env_id in ids:
+        maze = env_id.endswith("Maze-v0")
+        if "single" in parts:
+            compare(env_id, "single", {"kind": "single", "env_id": env_id,
+                                       "steps": _steps_for(env_id, args),
+                                       "repeats": args.repeats, "kwargs": {}})
+        if "native" in parts:
+            for n in (16, 64):
+                calls = max(2, (args.maze_calls if maze else args.calls) * 16 // n)
+                request = {"kind": "vector", "env_id": env_id, "n": n, "calls": calls,
+                           "repeats": args.repeats, "kwargs": {}}
+                compare(env_id, f"native n={n}", request,
+                        {**request, "sync": True} if maze else None)
+        if "reset" in parts and not maze:
+            request = {"kind": "reset", "env_id": env_id, "resets": args.resets,
+                       "repeats": args.repeats, "kwargs": {}}
+            compare(env_id, "reset", request,
+                    {**request, "kwargs": {"map_pool": 8}})
+        if "split" in parts:
+            row = {"id": env_id, "case": "split",
+                   "head": measure(ROOT, {"kind": "split", "env_id": env_id,
+                                          "steps": _steps_for(env_id, args) // 2,
+                                          "kwargs": {}})}
+            report(row)
+    print("\ntargets:", json.dumps(TARGETS, indent=1))
+
+
+if __name__ == "__main__":
+    main()

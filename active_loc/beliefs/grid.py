@@ -52,6 +52,7 @@ from scipy import ndimage
 
 from active_loc.beliefs.grid_motion import fractional_kernels, noise_in_cells, unicycle_shift
 from active_loc.maps.occupancy import FREE, OccupancyGrid
+from active_loc.parallel import parallel_twin, pick
 
 # --- kernels ---------------------------------------------------------------------------------
 
@@ -213,16 +214,17 @@ def translate_kernel(
                 if weights[b, h, k] != 0.0:
                     r = max(r, abs(offsets[b, h, k, 0]), abs(offsets[b, h, k, 1]))
             reach[h] = r
-        for x in range(nx):
-            for y in range(ny):
-                if not free[b, x, y]:
-                    continue
-                room = clearance[b, x, y]
-                for h in range(nh):
+        # headings never mix here, so each heading bin is a loop of its own (in parallel in
+        # the twin); within one, the sums run in the order of the cells as before
+        for h in numba.prange(nh):
+            for x in range(nx):
+                for y in range(ny):
+                    if not free[b, x, y]:
+                        continue
                     p = prob[b, x, y, h]
                     if p == 0.0:
                         continue
-                    if reach[h] <= room:  # nothing in reach is blocked
+                    if reach[h] <= clearance[b, x, y]:  # nothing in reach is blocked
                         for k in range(nk):
                             w = weights[b, h, k]
                             out[b, x + offsets[b, h, k, 0], y + offsets[b, h, k, 1], h] += p * w
@@ -233,12 +235,13 @@ def translate_kernel(
                             continue
                         dx = offsets[b, h, k, 0]
                         dy = offsets[b, h, k, 1]
-                        tx = x + dx
-                        ty = y + dy
                         if _stays(free, b, x, y, dx, dy):
                             out[b, x, y, h] += p * w
                         else:
-                            out[b, tx, ty, h] += p * w
+                            out[b, x + dx, y + dy, h] += p * w
+
+
+translate_kernel_parallel = parallel_twin(translate_kernel)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -851,7 +854,9 @@ class GridBelief:
             raise ValueError(f"noise_std must be 3 finite numbers >= 0, got {noise_std!r}")
         move, move_w, turns, turn_w = fractional_kernels(sh, tr, std)
         # translate with the heading before the turn, then turn (blocked or not)
-        translate_kernel(self._prob, self._free, self.clearance, move, move_w, self._scratch)
+        pick(translate_kernel, translate_kernel_parallel)(
+            self._prob, self._free, self.clearance, move, move_w, self._scratch
+        )
         turn_kernel(self._scratch, self._free, turns, turn_w, self._prob)
 
     def predict_unicycle(

@@ -57,18 +57,16 @@ from numpy.typing import ArrayLike, NDArray
 from active_loc.beliefs.particle_stats import (
     ENTROPY_BINS,
     bin_hash,
-    effective_sample_size,
-    histogram_entropy,
     kld_limit,
     logsumexp,
     normalize_log_weights,
     pose_bin,
+    summarize_particles,
     table_size,
-    weighted_covariance,
-    weighted_mean,
 )
 from active_loc.geometry import wrap_angle, wrap_angle_scalar
 from active_loc.motion import UnicycleModel
+from active_loc.parallel import parallel_twin, pick, use_parallel
 from active_loc.random_streams import draw_key, fill_uniforms, stream_uniform
 from active_loc.sensors.landmarks import (
     RANGE_BEARING,
@@ -313,6 +311,50 @@ def stream_free_poses(
 # --- motion --------------------------------------------------------------------------------------
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def move_particle(
+    x: float, y: float, th: float, v: float, omega: float, dt: float, n0: float, n1: float,
+    n2: float, L: NDArray,
+) -> tuple[float, float, float]:
+    """A pose moved by the unicycle transition with the noise ``L n``, ``n = (n0, n1, n2)``
+    standard normals (scalars in and out: no array per particle in the loops)."""
+    return (
+        x + v * np.cos(th) * dt + L[0, 0] * n0 + L[0, 1] * n1 + L[0, 2] * n2,
+        y + v * np.sin(th) * dt + L[1, 0] * n0 + L[1, 1] * n1 + L[1, 2] * n2,
+        wrap_angle_scalar(th + omega * dt + L[2, 0] * n0 + L[2, 1] * n1 + L[2, 2] * n2),
+    )
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def pose_free(x: float, y: float, values: NDArray, geom: NDArray, is_grid: bool) -> bool:
+    """Whether the point ``(x, y)`` (m) is in the free space (:func:`points_free`)."""
+    if is_grid:
+        ny, nx = values.shape
+        j = grid_cell(x, y, geom[0], geom[1], geom[2], geom[3], geom[4], nx, ny)
+        return j >= 0 and values[j // nx, j % nx] == FREE
+    return geom[5] <= x <= geom[7] and geom[6] <= y <= geom[8]
+
+
+@numba.njit(cache=True, nogil=True)
+def move_particles(
+    src: NDArray, v: float, omega: float, dt: float, normals: NDArray, noise_root: NDArray,
+    values: NDArray, geom: NDArray, is_grid: bool, dst: NDArray, inside: NDArray,
+) -> None:
+    """The motion update of one particle set out of place: ``dst`` ``(K, 3)`` = ``src`` moved
+    with the control (V m/s, omega rad/s) and the noise of ``normals`` ``(K, 3)``, and
+    ``inside`` ``(K,)`` whether each moved particle is in the free space (the map prior)."""
+    for k in numba.prange(src.shape[0]):
+        x, y, th = move_particle(src[k, 0], src[k, 1], src[k, 2], v, omega, dt, normals[k, 0],
+                                 normals[k, 1], normals[k, 2], noise_root)
+        dst[k, 0] = x
+        dst[k, 1] = y
+        dst[k, 2] = th
+        inside[k] = pose_free(x, y, values, geom, is_grid)
+
+
+move_particles_parallel = parallel_twin(move_particles)
+
+
 @numba.njit(cache=True, nogil=True)
 def sample_motion(
     particles: NDArray,
@@ -335,20 +377,17 @@ def sample_motion(
         normals: ``(B, K, 3)`` standard normals drawn with the Generator.
         noise_root: ``(3, 3)`` L with ``L L^T = Q``.
     """
-    l00, l01, l02 = noise_root[0, 0], noise_root[0, 1], noise_root[0, 2]
-    l10, l11, l12 = noise_root[1, 0], noise_root[1, 1], noise_root[1, 2]
-    l20, l21, l22 = noise_root[2, 0], noise_root[2, 1], noise_root[2, 2]
     for b in range(particles.shape[0]):
-        v = controls[b, 0]
-        om = controls[b, 1]
-        for k in range(counts[b]):
-            n0 = normals[b, k, 0]
-            n1 = normals[b, k, 1]
-            n2 = normals[b, k, 2]
-            th = particles[b, k, 2]
-            particles[b, k, 0] += v * np.cos(th) * dt + l00 * n0 + l01 * n1 + l02 * n2
-            particles[b, k, 1] += v * np.sin(th) * dt + l10 * n0 + l11 * n1 + l12 * n2
-            particles[b, k, 2] = wrap_angle_scalar(th + om * dt + l20 * n0 + l21 * n1 + l22 * n2)
+        for k in numba.prange(counts[b]):
+            x, y, th = move_particle(particles[b, k, 0], particles[b, k, 1], particles[b, k, 2],
+                                     controls[b, 0], controls[b, 1], dt, normals[b, k, 0],
+                                     normals[b, k, 1], normals[b, k, 2], noise_root)
+            particles[b, k, 0] = x
+            particles[b, k, 1] = y
+            particles[b, k, 2] = th
+
+
+sample_motion_parallel = parallel_twin(sample_motion)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -368,7 +407,7 @@ def mask_free_space(
     ox, oy, c, s, res = geom[0], geom[1], geom[2], geom[3], geom[4]
     x_min, y_min, x_max, y_max = geom[5], geom[6], geom[7], geom[8]
     for b in range(particles.shape[0]):
-        for k in range(counts[b]):
+        for k in numba.prange(counts[b]):
             x = particles[b, k, 0]
             y = particles[b, k, 1]
             if is_grid:
@@ -378,6 +417,9 @@ def mask_free_space(
                 ok = x_min <= x <= x_max and y_min <= y <= y_max
             if not ok:
                 log_w[b, k] = -np.inf
+
+
+mask_free_space_parallel = parallel_twin(mask_free_space)
 
 
 # --- weights and resampling ----------------------------------------------------------------------
@@ -650,7 +692,7 @@ def landmark_log_likelihood_kernel(
     """
     log_norm = -np.log(2.0 * np.pi) - np.log(l00) - np.log(l11)
     n_lm = landmarks.shape[0]
-    for k in range(particles.shape[0]):
+    for k in numba.prange(particles.shape[0]):
         x = particles[k, 0]
         y = particles[k, 1]
         th = particles[k, 2]
@@ -674,6 +716,9 @@ def landmark_log_likelihood_kernel(
                         best = val
                 total += best
         out[k] = total
+
+
+landmark_log_likelihood_parallel = parallel_twin(landmark_log_likelihood_kernel)
 
 
 def landmark_log_likelihood(
@@ -720,7 +765,7 @@ def landmark_log_likelihood(
     except np.linalg.LinAlgError:
         raise ValueError("landmark_log_likelihood: noise_cov is not positive definite") from None
     out = np.empty(parts.shape[0])
-    landmark_log_likelihood_kernel(
+    pick(landmark_log_likelihood_kernel, landmark_log_likelihood_parallel)(
         parts, z, visible, landmarks, int(kind), float(root[0, 0]), float(root[1, 0]),
         float(root[1, 1]), bool(known_correspondence), out,
     )
@@ -747,6 +792,25 @@ def _check_bins(name: str, bins: ArrayLike) -> NDArray[np.float64]:
                          f"got {bins}")
     arr.setflags(write=False)
     return arr
+
+
+@dataclass(frozen=True)
+class ParticleSummary:
+    """What a step reads of a particle set (read-only arrays).
+
+    Attributes:
+        weights: ``(K,)`` normalized linear weights of the active particles.
+        mean: ``(3,)`` weighted mean pose (m, m, rad; circular in theta).
+        cov: ``(3, 3)`` weighted covariance (heading residuals wrapped about the mean).
+        entropy: histogram entropy on the belief's entropy bins plus log(cell volume) (nats).
+        ess: Kish's effective sample size ``1 / sum w^2``.
+    """
+
+    weights: NDArray[np.float64]
+    mean: NDArray[np.float64]
+    cov: NDArray[np.float64]
+    entropy: float
+    ess: float
 
 
 class MCLBelief:
@@ -861,9 +925,10 @@ class MCLBelief:
         self._counts = np.full(1, n_particles, dtype=np.int64)
         self._log_w_slow: float | None = None
         self._log_w_fast: float | None = None
+        self._summary: ParticleSummary | None = None
         self._initialized = False
         #: reusable arrays for a step's draws (see :meth:`_buffer`)
-        self._buffers: dict[str, NDArray[np.float64]] = {}
+        self._buffers: dict[str, NDArray] = {}
         self.reinitialized = False
         self.n_reinitializations = 0
         self.blocked = False
@@ -902,8 +967,7 @@ class MCLBelief:
     @property
     def weights(self) -> NDArray[np.float64]:
         """``(K,)`` normalized linear weights (a new array)."""
-        lw = self._log_weights[0, : self._counts[0]]
-        return np.exp(lw - logsumexp(lw))
+        return self.summary().weights.copy()
 
     @property
     def injection_rate(self) -> float:
@@ -922,6 +986,7 @@ class MCLBelief:
                           self._particles[0])
         self._log_weights[0] = -math.log(k)
         self._counts[0] = k
+        self._summary = None
         self._log_w_slow = self._log_w_fast = None
         self._initialized = True
 
@@ -961,6 +1026,7 @@ class MCLBelief:
         self._particles[0] = parts
         self._log_weights[0] = -math.log(k)
         self._counts[0] = k
+        self._summary = None
         self._log_w_slow = self._log_w_fast = None
         self._initialized = True
         self.reinitialized = False
@@ -1002,6 +1068,7 @@ class MCLBelief:
         self._log_weights[0, :k] = lw2[0]
         self._log_weights[0, k:] = -math.inf
         self._counts[0] = k
+        self._summary = None
         self._log_w_slow = self._log_w_fast = None
         self._initialized = True
 
@@ -1017,6 +1084,7 @@ class MCLBelief:
         fs = self.free_space
         mask_free_space(self._particles, self._log_weights, self._counts, fs.values, fs.geom,
                         fs.is_grid)
+        self._summary = None
         if normalize_log_weights(self._log_weights[0, : self._counts[0]]) == -math.inf:
             self._reinitialize(rng)
 
@@ -1033,23 +1101,31 @@ class MCLBelief:
             raise ValueError(f"MCLBelief.predict: control must be 2 finite numbers (V m/s, "
                              f"omega rad/s), got {control}")
         self.reinitialized = False
+        self._summary = None
         n = self.n_active
         normals = rng.standard_normal(out=self._buffer("normals", (self.n_particles, 3))[:n])
-        before = self._particles[0, :n].copy()
-        before_log_w = self._log_weights[0, :n].copy()
-        sample_motion(self._particles, self._counts, u.reshape(1, 2), self.motion.dt,
-                      normals[None], self.motion.noise_root)
+        moved = self._buffer("moved", (1, self.n_particles, 3))
+        inside = self._flags("inside")[:n]
         fs = self.free_space
-        mask_free_space(self._particles, self._log_weights, self._counts, fs.values, fs.geom,
-                        fs.is_grid)
-        self.blocked = normalize_log_weights(self._log_weights[0, :n]) == -math.inf
+        pick(move_particles, move_particles_parallel)(
+            self._particles[0, :n], float(u[0]), float(u[1]), self.motion.dt, normals,
+            self.motion.noise_root, fs.values, fs.geom, fs.is_grid, moved[0, :n], inside,
+        )
+        n_inside = int(np.count_nonzero(inside))
+        # Every hypothesis says this move runs into a wall: read it as blocked under all of
+        # them, as the robot itself would be, and let the scans judge (every particle keeps
+        # its pose and weight). Re-initializing here would throw a whole tracked belief away on
+        # one step (and would act as a second, unconfigured kidnapping recovery beside
+        # augmented MCL).
+        self.blocked = n_inside == 0 or not np.any(self._log_weights[0, :n][inside] > -math.inf)
         if self.blocked:
-            # Every hypothesis says this move runs into a wall: read it as blocked under all of
-            # them, as the robot itself would be, and let the scans judge. Re-initializing here
-            # would throw a whole tracked belief away on one step (and would act as a second,
-            # unconfigured kidnapping recovery beside augmented MCL).
-            self._particles[0, :n] = before
-            self._log_weights[0, :n] = before_log_w
+            return
+        # the moved set becomes the belief (the arrays swap: no copy of K poses)
+        self._buffers["moved"], self._particles = self._particles, moved
+        if n_inside < n:
+            log_w = self._log_weights[0, :n]
+            log_w[~inside] = -math.inf
+            normalize_log_weights(log_w)
 
     def update(self, log_likelihood: ArrayLike, rng: np.random.Generator) -> None:
         """Measurement update with per-particle log-likelihoods ``(K,)`` (K = :attr:`n_active`,
@@ -1077,6 +1153,7 @@ class MCLBelief:
         self.last_injected = 0
         self.last_injection_rate = 0.0
         key = draw_key(rng)
+        self._summary = None
         log_ev = add_log_likelihood(self._log_weights[0, :n], ll)
         self.last_log_evidence = log_ev
         if log_ev == -math.inf:
@@ -1091,7 +1168,7 @@ class MCLBelief:
             fast = math.log1p(-self.alpha_fast) if self.alpha_fast < 1.0 else -math.inf
             self._log_w_fast = _log_add(fast + self._log_w_fast,
                                         math.log(self.alpha_fast) + log_ev)
-        if effective_sample_size(self._log_weights[0, :n]) < self.resample_threshold * n:
+        if self.summary().ess < self.resample_threshold * n:
             self._resample(key)
 
     def update_landmarks(
@@ -1117,6 +1194,13 @@ class MCLBelief:
         ll = landmark_log_likelihood(self.particles, z, vis, landmarks, sensor.kind,
                                      sensor.noise_cov, known_correspondence)
         self.update(ll, rng)
+
+    def _flags(self, name: str) -> NDArray[np.bool_]:
+        """This belief's reusable bool array ``name`` ``(K_max,)``."""
+        flags = self._buffers.get(name)
+        if flags is None:
+            flags = self._buffers[name] = np.empty(self.n_particles, dtype=np.bool_)
+        return flags
 
     def _buffer(self, name: str, shape: tuple[int, ...]) -> NDArray[np.float64]:
         """This belief's reusable float64 array ``name`` (K_max rows): a step's draws go into
@@ -1156,6 +1240,7 @@ class MCLBelief:
         self._log_weights[0, :new_n] = -math.log(new_n)
         self._log_weights[0, new_n:] = -math.inf
         self._counts[0] = new_n
+        self._summary = None
         self.resampled = True
         self.last_injected = int(n_inj)
         self.last_injection_rate = p_inj
@@ -1165,36 +1250,43 @@ class MCLBelief:
 
     # --- statistics --------------------------------------------------------------------------
 
+    def summary(self) -> ParticleSummary:
+        """The weights, mean, covariance, entropy and ESS of the particle set, computed once
+        per state of the belief (:func:`~active_loc.beliefs.particle_stats.summarize_particles`)
+        and shared by every statistic below until the next change."""
+        if self._summary is None:
+            n = int(self._counts[0])
+            weights, mean, cov = np.empty(n), np.empty(3), np.empty((3, 3))
+            dx_dy_dth = self.entropy_bins
+            entropy, ess = summarize_particles(
+                self._particles[0, :n], self._log_weights[0, :n], dx_dy_dth, use_parallel(),
+                weights, mean, cov,
+            )
+            for arr in (weights, mean, cov):
+                arr.setflags(write=False)
+            self._summary = ParticleSummary(weights, mean, cov, entropy, ess)
+        return self._summary
+
     def mean(self) -> NDArray[np.float64]:
         """Weighted mean pose ``(3,)`` (m, m, rad), heading by the circular mean."""
-        out = np.empty(3)
-        weighted_mean(self._particles[0, : self._counts[0]],
-                      self._log_weights[0, : self._counts[0]], out)
-        return out
+        return self.summary().mean.copy()
 
     def covariance(self) -> NDArray[np.float64]:
         """Weighted covariance ``(3, 3)``, heading residuals wrapped about the circular mean."""
-        return self.mean_and_covariance()[1]
+        return self.summary().cov.copy()
 
     def mean_and_covariance(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """:meth:`mean` and :meth:`covariance` together, with one pass over the particles
-        for the mean instead of two."""
-        n = self._counts[0]
-        mean = self.mean()
-        out = np.empty((3, 3))
-        weighted_covariance(self._particles[0, :n], self._log_weights[0, :n], mean, out)
-        return mean, out
+        """:meth:`mean` and :meth:`covariance` together."""
+        summary = self.summary()
+        return summary.mean.copy(), summary.cov.copy()
 
     def entropy(self) -> float:
         """Histogram entropy on the ``entropy_bins`` pose grid plus log(cell volume) (nats)."""
-        n = self._counts[0]
-        dx, dy, dth = self.entropy_bins
-        return float(histogram_entropy(self._particles[0, :n], self._log_weights[0, :n],
-                                       dx, dy, dth))
+        return self.summary().entropy
 
     def effective_sample_size(self) -> float:
         """ESS ``1 / sum w^2`` of the active particles."""
-        return float(effective_sample_size(self._log_weights[0, : self._counts[0]]))
+        return self.summary().ess
 
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()

@@ -26,9 +26,13 @@ map-frame origin and at heading ``-pi``, so that ``dtheta = 2 pi / n`` tiles the
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from active_loc.parallel import parallel_twin
 
 #: the default entropy cells (dx m, dy m, dtheta rad)
 ENTROPY_BINS = (0.25, 0.25, 2.0 * np.pi / 36.0)
@@ -227,20 +231,9 @@ def histogram_entropy(
     the value cannot exceed ``log K + log(dx dy dth)``, so a sparse cloud under-reports the
     entropy of a very broad belief.
     """
-    k = particles.shape[0]
-    w = np.empty(k)
+    w = np.empty(particles.shape[0])
     normalized_weights(log_w, w)
-    ids = np.empty(k, dtype=np.int64)
-    n_bins = assign_bins(particles, dx, dy, dth, ids)
-    acc = np.zeros(n_bins)
-    for i in range(k):
-        acc[ids[i]] += w[i]
-    h = 0.0
-    for b in range(n_bins):
-        p = acc[b]
-        if p > 0.0:
-            h -= p * np.log(p)
-    return h + np.log(dx * dy * dth)
+    return binned_entropy(particles, w, dx, dy, dth)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -265,3 +258,137 @@ def kld_limit(k: int, min_particles: int, max_particles: int, err: float, z: flo
     if n > max_particles:
         return max_particles
     return int(n)
+
+
+# --- everything a step reads of a particle set, in one kernel -----------------------------------
+
+#: particles per block of :func:`summarize_particles`: the sums are taken per block and the
+#: blocks added in order, so that the serial and parallel twins give the same numbers
+SUMMARY_BLOCK = 2048
+
+
+@numba.njit(cache=True, nogil=True)
+def _summary_blocks(
+    particles: NDArray, log_w: NDArray, shift: float, weights: NDArray, partial: NDArray
+) -> None:
+    """Per block ``i`` of :data:`SUMMARY_BLOCK` particles: ``weights = exp(log_w - shift)``
+    (unnormalized) and ``partial[i]`` = the sums of w, w^2, w x, w y, w sin(theta),
+    w cos(theta)."""
+    k = particles.shape[0]
+    n_blocks = partial.shape[0]
+    for i in numba.prange(n_blocks):
+        s0 = s1 = sx = sy = ss = sc = 0.0
+        for j in range(i * SUMMARY_BLOCK, min(k, (i + 1) * SUMMARY_BLOCK)):
+            w = np.exp(log_w[j] - shift)
+            weights[j] = w
+            if w == 0.0:
+                continue
+            s0 += w
+            s1 += w * w
+            sx += w * particles[j, 0]
+            sy += w * particles[j, 1]
+            ss += w * np.sin(particles[j, 2])
+            sc += w * np.cos(particles[j, 2])
+        partial[i, 0] = s0
+        partial[i, 1] = s1
+        partial[i, 2] = sx
+        partial[i, 3] = sy
+        partial[i, 4] = ss
+        partial[i, 5] = sc
+
+
+@numba.njit(cache=True, nogil=True)
+def _covariance_blocks(
+    particles: NDArray, weights: NDArray, mean: NDArray, partial: NDArray
+) -> None:
+    """Per block ``i``: ``partial[i]`` = the weighted sums of the residual products r0 r0,
+    r0 r1, r0 r2, r1 r1, r1 r2, r2 r2 about ``mean`` (heading residual wrapped)."""
+    k = particles.shape[0]
+    for i in numba.prange(partial.shape[0]):
+        c00 = c01 = c02 = c11 = c12 = c22 = 0.0
+        for j in range(i * SUMMARY_BLOCK, min(k, (i + 1) * SUMMARY_BLOCK)):
+            w = weights[j]
+            if w == 0.0:
+                continue
+            r0 = particles[j, 0] - mean[0]
+            r1 = particles[j, 1] - mean[1]
+            r2 = particles[j, 2] - mean[2]
+            if not -np.pi <= r2 < np.pi:
+                r2 = (r2 + np.pi) % (2.0 * np.pi) - np.pi
+            c00 += w * r0 * r0
+            c01 += w * r0 * r1
+            c02 += w * r0 * r2
+            c11 += w * r1 * r1
+            c12 += w * r1 * r2
+            c22 += w * r2 * r2
+        partial[i, 0] = c00
+        partial[i, 1] = c01
+        partial[i, 2] = c02
+        partial[i, 3] = c11
+        partial[i, 4] = c12
+        partial[i, 5] = c22
+
+
+_summary_blocks_parallel = parallel_twin(_summary_blocks)
+_covariance_blocks_parallel = parallel_twin(_covariance_blocks)
+
+
+def summarize_particles(
+    particles: NDArray, log_w: NDArray, bins: NDArray, parallel: bool,
+    weights: NDArray, mean: NDArray, cov: NDArray,
+) -> tuple[float, float]:
+    """What a step reads of the particle set ``(K, 3)`` with log-weights ``(K,)``, in two
+    passes of exp, sin and cos instead of one per statistic.
+
+    Writes the normalized weights ``(K,)``, the mean ``(3,)`` (circular in theta) and the
+    covariance ``(3, 3)`` (heading residuals wrapped) as :func:`weighted_mean` and
+    :func:`weighted_covariance` define them; returns ``(entropy, ess)``: the histogram entropy
+    on the pose grid ``bins`` ``(dx m, dy m, dtheta rad)`` (nats, as
+    :func:`histogram_entropy`) and Kish's effective sample size. ``parallel`` runs the block
+    sums on numba's threads (the same numbers). Every weight zero: uniform weights.
+    """
+    k = particles.shape[0]
+    n_blocks = (k + SUMMARY_BLOCK - 1) // SUMMARY_BLOCK
+    partial = np.empty((n_blocks, 6))
+    shift = float(log_w.max()) if k else -np.inf
+    if shift == -np.inf:
+        log_w = np.zeros(k)
+        shift = 0.0
+    (_summary_blocks_parallel if parallel else _summary_blocks)(
+        particles, log_w, shift, weights, partial
+    )
+    sums = partial.sum(axis=0)  # the blocks in order (a new array: partial is reused)
+    total = sums[0]
+    weights /= total
+    mean[0] = sums[2] / total
+    mean[1] = sums[3] / total
+    heading = math.atan2(sums[4], sums[5])
+    mean[2] = heading if heading < math.pi else -math.pi
+    (_covariance_blocks_parallel if parallel else _covariance_blocks)(
+        particles, weights, mean, partial
+    )
+    c = partial.sum(axis=0)
+    cov[0, 0], cov[0, 1], cov[0, 2] = c[0], c[1], c[2]
+    cov[1, 0], cov[1, 1], cov[1, 2] = c[1], c[3], c[4]
+    cov[2, 0], cov[2, 1], cov[2, 2] = c[2], c[4], c[5]
+    entropy = float(binned_entropy(particles, weights, bins[0], bins[1], bins[2]))
+    return entropy, float(total * total / sums[1])
+
+
+@numba.njit(cache=True, nogil=True)
+def binned_entropy(
+    particles: NDArray, weights: NDArray, dx: float, dy: float, dth: float
+) -> float:
+    """:func:`histogram_entropy` from normalized linear ``weights`` ``(K,)``."""
+    k = particles.shape[0]
+    ids = np.empty(k, dtype=np.int64)
+    n_bins = assign_bins(particles, dx, dy, dth, ids)
+    acc = np.zeros(n_bins)
+    for i in range(k):
+        acc[ids[i]] += weights[i]
+    h = 0.0
+    for b in range(n_bins):
+        p = acc[b]
+        if p > 0.0:
+            h -= p * np.log(p)
+    return h + np.log(dx * dy * dth)

@@ -27,7 +27,6 @@ discards the old one: fast and exactly reproducible, in a single env as in a bat
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -45,6 +44,7 @@ from active_loc.envs.rewards import REWARD_CODES, outcome_term, uncertainty_rewa
 from active_loc.geometry import wrap_angle_scalar
 from active_loc.maps import LandmarkMap, random_landmark_map
 from active_loc.motion import UnicycleModel, move_within_bounds_scalar
+from active_loc.parallel import note_parallel_launch, prange_forbidden
 from active_loc.sensors.landmarks import (
     LandmarkSensor,
     RangeBearingSensor,
@@ -65,23 +65,6 @@ NEED_NOISE = -2
 #: member at 256 members), which outweighs the parallel launch (about 0.3 us) from here on
 PRANGE_MIN_MEMBERS = 4
 
-
-class _PrangeSafety:
-    """Whether this process may launch the ``prange`` kernel. numba's GNU OpenMP threading
-    layer kills a child process forked after its parent launched a parallel kernel as soon
-    as the child launches one ("fork() called from a process already using GNU OpenMP"); such
-    a child steps its batches in the plain loop instead (the same results, slower)."""
-
-    launched = False  # this process has launched the prange kernel
-    forbidden = False  # a child forked after that: launching it would kill the process
-
-    @classmethod
-    def after_fork_in_child(cls) -> None:
-        cls.forbidden = cls.launched
-
-
-if hasattr(os, "register_at_fork"):  # POSIX; other platforms have no fork
-    os.register_at_fork(after_in_child=_PrangeSafety.after_fork_in_child)
 
 TEXTBOOK_LANDMARKS = np.array([[0.0, 0.0], [2.0, 8.0], [8.0, 2.0], [10.0, 10.0]])
 TEXTBOOK_BOUNDS = (-2.0, -2.0, 14.0, 14.0)
@@ -616,8 +599,8 @@ class LandmarkCore(StateViews):
         if active is None:
             active = self._all_active
         if (self._fused and self.batch_size >= PRANGE_MIN_MEMBERS
-                and not _PrangeSafety.forbidden):
-            _PrangeSafety.launched = True
+                and not prange_forbidden()):
+            note_parallel_launch()
             numba.set_num_threads(threads)  # a setting of the calling thread: set every call
             kernel = step_batch_parallel
         else:

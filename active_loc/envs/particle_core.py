@@ -441,11 +441,12 @@ class ParticleCore(StateViews):
         """The belief's mean ``(3,)``, covariance ``(3, 3)``, entropy (nats) and log det."""
         belief = self.belief
         assert belief is not None
-        mean, cov = belief.mean_and_covariance()
+        summary = belief.summary()
         # a particle set stands for a density at the resolution of the entropy bins, so its log
         # det adds a bin's own variance (d^2 / 12): finite even when every particle coincides
-        sign, logdet = np.linalg.slogdet(cov + self._bin_variance)
-        return mean, cov, belief.entropy(), float(logdet) if sign > 0 else -np.inf
+        sign, logdet = np.linalg.slogdet(summary.cov + self._bin_variance)
+        return (summary.mean, summary.cov, summary.entropy,
+                float(logdet) if sign > 0 else -np.inf)
 
     def _write_observation(self, mean: NDArray, cov: NDArray, entropy: float) -> None:
         out = self.obs[0]
@@ -474,7 +475,7 @@ class ParticleCore(StateViews):
         ``bounds`` ``(4,)``, row-major from the bottom-left (index ``iy * 8 + ix``)."""
         belief = self.belief
         assert belief is not None
-        return mass_histogram(belief.particles[:, :2], belief.weights, bounds)
+        return mass_histogram(belief.particles[:, :2], belief.summary().weights, bounds)
 
 
 @numba.njit(cache=True, nogil=True)

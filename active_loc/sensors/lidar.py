@@ -39,6 +39,8 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from active_loc.parallel import parallel_twin, pick
+
 #: a cell whose value is at least this (percent) reflects a beam
 OCCUPIED_THRESHOLD = 50
 #: a reading ``z >= max_range * (1 - MAX_READING_TOL)`` is a max reading (no return); relative,
@@ -464,6 +466,9 @@ def likelihood_field_table_log_likelihood(
         out[k] = total
 
 
+likelihood_field_table_parallel = parallel_twin(likelihood_field_table_log_likelihood)
+
+
 @numba.njit(cache=True, nogil=True)
 def likelihood_field_skip_log_likelihood(
     z: NDArray,
@@ -841,7 +846,7 @@ class LidarSensor:
                 s, self.max_range, skip_distance, skip_threshold, skip_error_threshold, out,
             )
             return out
-        likelihood_field_table_log_likelihood(
+        pick(likelihood_field_table_log_likelihood, likelihood_field_table_parallel)(
             z, self.beam_angles, poses, log_table, log_off, res, ox, oy, c, s, self.max_range,
             out,
         )

@@ -27,6 +27,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from active_loc.parallel import parallel_twin, pick
 from active_loc.sensors.lidar import MAX_READING_TOL, PROB_FLOOR, LidarSensor
 
 
@@ -80,11 +81,10 @@ def lattice_field_kernel(
     nh = headings.shape[0]
     n_beams = z.shape[0]
     threshold = max_range * (1.0 - MAX_READING_TOL)
-    cols = np.empty(n_x, dtype=np.int64)
-    rows = np.empty(n_y, dtype=np.int64)
-    acc = np.empty((n_x, n_y))
-    for h in range(nh):
-        acc[:] = 0.0
+    for h in numba.prange(nh):  # headings are independent: in parallel in the twin
+        cols = np.empty(n_x, dtype=np.int64)
+        rows = np.empty(n_y, dtype=np.int64)
+        acc = np.zeros((n_x, n_y))
         for m in range(n_beams):
             if z[m] >= threshold:
                 continue
@@ -107,6 +107,9 @@ def lattice_field_kernel(
                 out[i, k, h] = acc[i, k] if free[i, k] else -np.inf
 
 
+lattice_field_kernel_parallel = parallel_twin(lattice_field_kernel)
+
+
 def lattice_field_log_likelihood(
     sensor: LidarSensor,
     z: NDArray,
@@ -125,7 +128,7 @@ def lattice_field_log_likelihood(
     of ``resolution`` m. Inputs are trusted (the caller built them)."""
     if out is None:
         out = np.empty((col_base.shape[0], row_base.shape[0], headings.shape[0]))
-    lattice_field_kernel(
+    pick(lattice_field_kernel, lattice_field_kernel_parallel)(
         z, sensor.beam_angles, headings, col_base, row_base, free, table, 1.0 / resolution,
         sensor.max_range, out,
     )

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from active_loc.maps import LandmarkMap, OccupancyGrid
+from active_loc.maps.pool import MAX_MAP_POOL
 from active_loc.sensors.detections import MAX_CLUTTER_RATE
 
 BELIEFS = ("ekf", "mcl", "grid")
@@ -43,6 +44,10 @@ class LocalizationConfig:
     map_size: tuple[float, float] = (20.0, 20.0)  # random maps: width, height (m)
     n_landmarks: tuple[int, int] = (8, 15)  # random maps: inclusive range of the count
     max_landmarks: int = 15  # observation slots; maps may not have more landmarks than this
+    # generated maps: None draws a new map every episode; N draws one of N seeded maps (the
+    # same N for every env of this config), each built once with its derived tables and shared
+    # by the sub-envs of a vector env (active_loc.maps.pool)
+    map_pool: int | None = None
 
     # --- robot ---------------------------------------------------------------------------
     dt: float = 0.2  # time step (s)
@@ -175,6 +180,16 @@ class LocalizationConfig:
                 raise ValueError(
                     "map must be 'random', 'textbook', a LandmarkMap or a non-empty (N, 2) "
                     f"array of landmark positions, got shape {positions.shape}"
+                )
+        if self.map_pool is not None:
+            _integer("map_pool", self.map_pool, 1)
+            if self.map_pool > MAX_MAP_POOL:
+                raise ValueError(f"map_pool must be None or an integer in [1, {MAX_MAP_POOL}], "
+                                 f"got {self.map_pool}")
+            if not self.generated_map:
+                raise ValueError(
+                    f"map_pool={self.map_pool} pools generated maps: it needs map='random' "
+                    f"(landmarks) or a generator of {GRID_MAPS} (lidar), got map={self.map!r}"
                 )
         if self.belief == "ekf" and (self.sensor == "lidar" or self.initial_belief == "uniform"):
             raise ValueError(
@@ -322,6 +337,13 @@ class LocalizationConfig:
             raise ValueError(
                 f"start_pose must be three finite numbers (x, y, theta), got {self.start_pose}"
             )
+
+    @property
+    def generated_map(self) -> bool:
+        """Whether every episode generates its map (a generator name, or random landmarks)."""
+        if not isinstance(self.map, str):
+            return False
+        return self.map in GRID_MAPS if self.uses_grid else self.map == "random"
 
     @property
     def uses_grid(self) -> bool:

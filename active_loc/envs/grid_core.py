@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from active_loc.beliefs.grid import GridBelief, coarse_free_mask
 from active_loc.envs.config import LocalizationConfig
-from active_loc.envs.particle_core import HISTOGRAM_CELLS, ParticleCore
+from active_loc.envs.particle_core import HISTOGRAM_CELLS, ParticleCore, build_lidar
 from active_loc.maps import LandmarkMap, OccupancyGrid
 from active_loc.sensors.lidar_lattice import (
     lattice_field_log_likelihood,
@@ -73,29 +73,23 @@ class GridCore(ParticleCore):
 
     # -- map and belief ------------------------------------------------------------------------
 
-    def _bind_map(self, lmap: LandmarkMap | OccupancyGrid) -> None:
-        """The simulator's per-map arrays, then the belief's cells and their poses."""
-        super()._bind_map(lmap)
+    @classmethod
+    def derive_map_data(cls, cfg: LocalizationConfig, lmap: LandmarkMap | OccupancyGrid) -> dict:
+        """The simulator's per-map arrays, then the belief's cells, their poses and the
+        lattice the likelihood field is scored on."""
+        data = super().derive_map_data(cfg, lmap)
         assert isinstance(lmap, OccupancyGrid)
-        cfg = self.config
         free = coarse_free_mask(lmap, cfg.grid_cell_size)
         template = GridBelief(free, cfg.grid_headings, cfg.grid_cell_size, lmap.origin)
         nx, ny, nh = free.shape[0], free.shape[1], cfg.grid_headings
         poses = template.cell_poses()  # (X, Y, H, 3)
         template.clearance  # noqa: B018  (computed once per map, shared by the episodes' copies)
-        self._template = template
-        self._free_index = np.flatnonzero(free.ravel())
-        self._poses = np.ascontiguousarray(poses.reshape(nx * ny, nh, 3)[self._free_index]
-                                           .reshape(-1, 3))
-        self._log_lik = np.full((nx, ny, nh), -np.inf)
-        self._map_resolution = lmap.resolution
+        free_index = np.flatnonzero(free.ravel())
         ratio = cfg.grid_cell_size / lmap.resolution
-        self._lattice = ((np.arange(nx) + 0.5) * ratio, (np.arange(ny) + 0.5) * ratio,
-                         2.0 * np.pi * np.arange(nh) / nh)
-        if self._log_table is not None:
-            assert self.lidar is not None
-            self._lattice_table = padded_table(self._log_table,
-                                               off_map_log_probability(self.lidar))
+        lattice_table = None
+        if data["_log_table"] is not None:
+            lattice_table = padded_table(data["_log_table"],
+                                         off_map_log_probability(build_lidar(cfg)))
         centres = poses[:, :, 0, :2].reshape(-1, 2)
         x_min, y_min, x_max, y_max = lmap.bounds
         cells = HISTOGRAM_CELLS
@@ -103,7 +97,23 @@ class GridCore(ParticleCore):
                      cells - 1)
         iy = np.clip(((centres[:, 1] - y_min) / (y_max - y_min) * cells).astype(np.int64), 0,
                      cells - 1)
-        self._hist_bins = iy * cells + ix
+        data.update(
+            _template=template,
+            _free_index=free_index,
+            _poses=np.ascontiguousarray(poses.reshape(nx * ny, nh, 3)[free_index].reshape(-1, 3)),
+            _map_resolution=lmap.resolution,
+            _lattice=((np.arange(nx) + 0.5) * ratio, (np.arange(ny) + 0.5) * ratio,
+                      2.0 * np.pi * np.arange(nh) / nh),
+            _lattice_table=lattice_table,
+            _hist_bins=iy * cells + ix,
+        )
+        return data
+
+    def _bind_map(self, lmap: LandmarkMap | OccupancyGrid, data: dict) -> None:
+        """The shared per-map arrays, and this core's own likelihood buffer."""
+        super()._bind_map(lmap, data)
+        assert self._template is not None
+        self._log_lik = np.full(self._template.shape[1:], -np.inf)
 
     def _init_belief(self, rng: np.random.Generator) -> None:
         """Uniform over the free cell poses, or a Gaussian around the true start plus

@@ -26,6 +26,7 @@ discards the old one: fast and exactly reproducible, in a single env as in a bat
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -43,6 +44,7 @@ from active_loc.envs.observations import belief_observation_size, write_belief_o
 from active_loc.envs.rewards import REWARD_CODES, outcome_term, uncertainty_reward
 from active_loc.geometry import wrap_angle_scalar
 from active_loc.maps import LandmarkMap, random_landmark_map
+from active_loc.maps.pool import pool_map_rng, shared_pool
 from active_loc.motion import UnicycleModel, move_within_bounds_scalar
 from active_loc.parallel import note_parallel_launch, prange_forbidden
 from active_loc.sensors.landmarks import (
@@ -186,6 +188,13 @@ def _map_extent(cfg: LocalizationConfig) -> tuple[float, float]:
     if isinstance(cfg.map, str):
         return cfg.map_size
     return fixed_landmark_map(cfg).size
+
+
+def _pool_landmark_map(
+    size: tuple[float, float], n_landmarks: tuple[int, int], index: int
+) -> LandmarkMap:
+    """Map ``index`` of a pool of random landmark maps."""
+    return random_landmark_map(pool_map_rng(index), size, n_landmarks)
 
 
 def fixed_landmark_map(cfg: LocalizationConfig) -> LandmarkMap:
@@ -551,10 +560,14 @@ class LandmarkCore(StateViews):
     def reset_member(self, b: int, rng: np.random.Generator) -> None:
         """New episode for member ``b``: map, true start, initial belief; no scan yet."""
         cfg = self.config
-        if self.fixed_map is None:
-            lmap = random_landmark_map(rng, cfg.map_size, cfg.n_landmarks)
-        else:
+        if self.fixed_map is not None:
             lmap = self.fixed_map
+        elif cfg.map_pool is not None:
+            build = functools.partial(_pool_landmark_map, cfg.map_size, cfg.n_landmarks)
+            key = ("landmarks", repr((cfg.map_size, cfg.n_landmarks)))
+            lmap = shared_pool(key, cfg.map_pool, build).draw(rng)
+        else:
+            lmap = random_landmark_map(rng, cfg.map_size, cfg.n_landmarks)
         self.maps[b] = lmap
         uniforms = rng.random(3) if self._random_start else self._start_pose
         normals = rng.standard_normal(3)

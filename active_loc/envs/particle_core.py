@@ -18,6 +18,7 @@ belief), then the scan: landmark slots on landmark maps, ranges / max_range for 
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -73,6 +74,7 @@ from active_loc.envs.rewards import REWARD_CODES, outcome_term, uncertainty_rewa
 from active_loc.geometry import wrap_angle
 from active_loc.maps import LandmarkMap, OccupancyGrid, random_landmark_map
 from active_loc.maps.generators import GENERATORS
+from active_loc.maps.pool import pool_map_rng, shared_pool
 from active_loc.motion import move_within_bounds
 from active_loc.sensors.lidar import LidarSensor, cast_ray
 from active_loc.sensors.range_table import RangeTable
@@ -97,6 +99,21 @@ def build_lidar(cfg: LocalizationConfig, simulated: bool = False) -> LidarSensor
         lambda_short=cfg.lidar_lambda_short, model=cfg.lidar_model,  # type: ignore[arg-type]
         unknown_reflects=cfg.unknown_reflects,
     )
+
+
+def draw_map(cfg: LocalizationConfig, rng: np.random.Generator) -> LandmarkMap | OccupancyGrid:
+    """A new generated map of the config (its generator, size and landmark count)."""
+    if cfg.uses_grid:
+        return GENERATORS[cfg.map](rng, size_m=cfg.map_size)
+    return random_landmark_map(rng, cfg.map_size, cfg.n_landmarks)
+
+
+def _pool_entry(
+    core: type[ParticleCore], cfg: LocalizationConfig, index: int
+) -> tuple[LandmarkMap | OccupancyGrid, dict]:
+    """Map ``index`` of a pool and its derived arrays."""
+    lmap = draw_map(cfg, pool_map_rng(index))
+    return lmap, core.derive_map_data(cfg, lmap)
 
 
 class ParticleCore(StateViews):
@@ -133,6 +150,7 @@ class ParticleCore(StateViews):
             self.lidar = self.true_lidar = None
             self.models = build_models(config)
         self.fixed_map = self._fixed_map()
+        self._fixed_data: dict | None = None  # derive_map_data of the fixed map
         self.maps: list[LandmarkMap | OccupancyGrid | None] = [None]
         self.state = np.zeros((1, STATE_SIZE))
         self.obs = np.zeros((1, particle_observation_size(config)), dtype=np.float32)
@@ -159,9 +177,9 @@ class ParticleCore(StateViews):
     def reset_member(self, b: int, rng: np.random.Generator) -> None:
         """New episode: map, true start, initial belief, kidnapping step; no scan yet."""
         cfg = self.config
-        lmap = self.fixed_map if self.fixed_map is not None else self._draw_map(rng)
+        lmap, data = self._episode_map(rng)
         if lmap is not self.maps[0]:
-            self._bind_map(lmap)
+            self._bind_map(lmap, data)
         self.maps[0] = lmap
         row = self.state[0]
         row[:] = 0.0
@@ -236,33 +254,55 @@ class ParticleCore(StateViews):
             raise ValueError(f"map={cfg.map!r}: no such map file")
         return OccupancyGrid.load(path, unknown_reflects=cfg.unknown_reflects)
 
-    def _draw_map(self, rng: np.random.Generator) -> LandmarkMap | OccupancyGrid:
+    def _episode_map(self, rng: np.random.Generator) -> tuple[LandmarkMap | OccupancyGrid, dict]:
+        """The map of a new episode and what the core derives from it: the fixed map, one of
+        the pool's (``map_pool``), or a new one drawn with ``rng``."""
         cfg = self.config
-        if self.grid_mode:
-            return GENERATORS[cfg.map](rng, size_m=cfg.map_size)
-        return random_landmark_map(rng, cfg.map_size, cfg.n_landmarks)
+        if self.fixed_map is not None:
+            if self._fixed_data is None:
+                self._fixed_data = self.derive_map_data(cfg, self.fixed_map)
+            return self.fixed_map, self._fixed_data
+        if cfg.map_pool is not None:
+            build = functools.partial(_pool_entry, type(self), cfg)
+            return shared_pool((type(self).__name__, repr(cfg)), cfg.map_pool, build).draw(rng)
+        lmap = draw_map(cfg, rng)
+        return lmap, self.derive_map_data(cfg, lmap)
 
-    def _bind_map(self, lmap: LandmarkMap | OccupancyGrid) -> None:
-        """Per-map arrays of the filter and the simulator."""
+    @classmethod
+    def derive_map_data(cls, cfg: LocalizationConfig, lmap: LandmarkMap | OccupancyGrid) -> dict:
+        """What the core derives from a map, by attribute name: the filter's free space and,
+        on grids, the ray-casting arrays, the distance field and the lidar model's table
+        (likelihood field) or precomputed casts (beam model with ``lidar_range_bins``).
+        Read-only once built, so that the episodes and sub-envs drawing a pool's map share
+        it."""
         if isinstance(lmap, OccupancyGrid):
-            self._free = FreeSpace.from_grid(lmap.values, lmap.resolution, lmap.origin)
-            self._grid_arrays = lmap.kernel_arrays()
-            self._distance = lmap.distance_field()
-            assert self.lidar is not None
-            if self.lidar.model == "likelihood_field":
-                self._log_table = self.lidar.log_table(self._distance)
-            elif self.config.lidar_range_bins:
-                self._range_table = RangeTable.build(self.lidar, self._grid_arrays,
-                                                     n_angles=self.config.lidar_range_bins)
-            return
-        if lmap.n_landmarks > self.config.max_landmarks:
+            lidar = build_lidar(cfg)
+            grid_arrays = lmap.kernel_arrays()
+            distance = lmap.distance_field()
+            log_table = range_table = None
+            if lidar.model == "likelihood_field":
+                log_table = lidar.log_table(distance)
+            elif cfg.lidar_range_bins:
+                range_table = RangeTable.build(lidar, grid_arrays, n_angles=cfg.lidar_range_bins)
+            return {
+                "_free": FreeSpace.from_grid(lmap.values, lmap.resolution, lmap.origin),
+                "_grid_arrays": grid_arrays, "_distance": distance, "_log_table": log_table,
+                "_range_table": range_table,
+            }
+        if lmap.n_landmarks > cfg.max_landmarks:
             raise ValueError(
                 f"the map has {lmap.n_landmarks} landmarks but max_landmarks="
-                f"{self.config.max_landmarks}; raise max_landmarks"
+                f"{cfg.max_landmarks}; raise max_landmarks"
             )
-        self._free = FreeSpace.from_box(*lmap.bounds)
-        self.landmarks[:] = 0.0
-        self.landmarks[0, : lmap.n_landmarks] = lmap.positions
+        return {"_free": FreeSpace.from_box(*lmap.bounds)}
+
+    def _bind_map(self, lmap: LandmarkMap | OccupancyGrid, data: dict) -> None:
+        """Use the per-map arrays ``data`` (:meth:`derive_map_data`) of ``lmap``."""
+        for name, value in data.items():
+            setattr(self, name, value)
+        if isinstance(lmap, LandmarkMap):
+            self.landmarks[:] = 0.0
+            self.landmarks[0, : lmap.n_landmarks] = lmap.positions
 
     @property
     def range_table(self) -> RangeTable | None:

@@ -49,6 +49,7 @@ from active_loc.envs.landmark_core import (
     LandmarkCore,
 )
 from active_loc.envs.localization_env import ActiveLocalizationEnv, build_frame, info_from_stats
+from active_loc.parallel import set_thread_count
 
 #: the fewest members a worker thread of the batched engine steps (fewer: one thread)
 MIN_ROWS_PER_WORKER = 64
@@ -78,7 +79,9 @@ class WorkerThreads:
         as they finish one (put the longest first: the threads then end together); re-raises
         the first error (a failing step, say) after all have finished."""
         if self._pool is None:
-            self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="active_loc")
+            # the workers already share the cores: each runs the kernels' serial twins
+            self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="active_loc",
+                                            initializer=set_thread_count, initargs=(1,))
         queue = iter(tasks)  # next() on a list iterator is atomic under the GIL
 
         def drain() -> None:

@@ -40,6 +40,7 @@ from active_loc.beliefs.ekf_filterpy import FilterpyEKFBelief
 from active_loc.beliefs.entropy import LOG_2PIE_3, det3
 from active_loc.envs.actions import ControlLimits
 from active_loc.envs.config import LocalizationConfig
+from active_loc.envs.metrics import belief_metrics
 from active_loc.envs.observations import belief_observation_size, write_belief_observation
 from active_loc.envs.rewards import REWARD_CODES, outcome_term, uncertainty_reward
 from active_loc.geometry import wrap_angle_scalar
@@ -278,19 +279,16 @@ def _finish_one(params: NDArray, state: NDArray, world: NDArray, obs: NDArray) -
     head_err = abs(wrap_angle_scalar(pose[2] - mean[2]))
     stats[S_POS_ERR] = pos_err
     stats[S_HEAD_ERR] = head_err
-    # largest eigenvalue of the 2x2 position covariance, closed form
-    half_tr = 0.5 * (cov[0, 0] + cov[1, 1])
-    gap = np.sqrt(max(0.25 * (cov[0, 0] - cov[1, 1]) ** 2 + cov[0, 1] ** 2, 0.0))
-    pos_std = np.sqrt(max(half_tr + gap, 0.0))
-    head_std = np.sqrt(max(cov[2, 2], 0.0))
+    pos_std, head_std, localized, success, terminal = belief_metrics(
+        cov, pos_err, head_err, False, params[P_LOC_POS], params[P_LOC_HEAD],
+        params[P_TOL_POS], params[P_TOL_HEAD],
+    )
     stats[S_POS_STD] = pos_std
     stats[S_HEAD_STD] = head_std
-    localized = pos_std <= params[P_LOC_POS] and head_std <= params[P_LOC_HEAD]
-    success = localized and pos_err <= params[P_TOL_POS] and head_err <= params[P_TOL_HEAD]
     stats[S_LOCALIZED] = 1.0 if localized else 0.0
     stats[S_SUCCESS] = 1.0 if success else 0.0
-    stats[S_TERMINAL] = stats[S_LOCALIZED]
-    stats[S_OUTCOME] = outcome_term(stats[S_TERMINAL] > 0.5, success, params[P_OUTCOME])
+    stats[S_TERMINAL] = 1.0 if terminal else 0.0
+    stats[S_OUTCOME] = outcome_term(terminal, success, params[P_OUTCOME])
     visible = world[:, W_VISIBLE]
     stats[S_N_VISIBLE] = visible.sum()
     write_belief_observation(

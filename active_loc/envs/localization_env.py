@@ -32,7 +32,7 @@ from active_loc.envs.landmark_core import (
 )
 from active_loc.envs.particle_core import ParticleCore
 from active_loc.envs.planner_view import PlannerView
-from active_loc.envs.rewards import reward_terms
+from active_loc.envs.rewards import reward_terms, step_reward
 from active_loc.maps import OccupancyGrid
 from active_loc.scenarios import scenario_kwargs
 
@@ -216,8 +216,8 @@ class ActiveLocalizationEnv(gym.Env):
             self._collisions += 1
         uncertainty = row[_UNCERTAINTY]
         info = self._info(row)
-        reward = uncertainty - self._step_cost - (self._collision_penalty if collided else 0.0)
-        reward += row[_OUTCOME]
+        reward = step_reward(uncertainty, collided, self._step_cost, self._collision_penalty,
+                             row[_OUTCOME])
         if self.render_mode is not None:
             self._true_path.append(core.pose[0, :2].copy())
             self._belief_path.append(core.state[0, X_MEAN : X_MEAN + 2].copy())

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from active_loc.beliefs.grid import GridBelief, MotionKernel
-from active_loc.envs.rewards import reward_terms
+from active_loc.envs.rewards import reward_terms, step_reward
 from active_loc.maps.maze import (
     HEADING_STEPS,
     TEST_SET_SEED,
@@ -430,7 +430,9 @@ class MazeEnv(gym.Env):
         info = self._info(uncertainty, collided)
         terminated = self._terminate_when_localized and info["localized"]
         truncated = not terminated and self._steps >= self.episode_length
-        return self._observation(), uncertainty, terminated, truncated, info
+        # the maze has no step cost, collision penalty or outcome term
+        reward = step_reward(uncertainty, collided, 0.0, 0.0, 0.0)
+        return self._observation(), reward, terminated, truncated, info
 
     def render(self) -> NDArray[np.uint8] | None:
         if self.render_mode is None:

@@ -67,6 +67,7 @@ from active_loc.beliefs.entropy import gaussian_entropy
 from active_loc.beliefs.mcl import FreeSpace, MCLBelief
 from active_loc.envs.actions import ControlLimits, action_space
 from active_loc.envs.config import _integer, _one_of, _positive, _stds
+from active_loc.envs.metrics import belief_metrics
 from active_loc.envs.multi_robot_fusion import (
     MultiRobotRenderer,
     detect_robots,
@@ -81,7 +82,7 @@ from active_loc.envs.observations import (
     write_landmark_slots,
 )
 from active_loc.envs.particle_core import HISTOGRAM_CELLS, mass_histogram
-from active_loc.envs.rewards import reward_terms
+from active_loc.envs.rewards import reward_terms, step_reward
 from active_loc.geometry import wrap_angle
 from active_loc.maps import LandmarkMap, random_landmark_map
 from active_loc.motion import UnicycleModel, move_within_bounds
@@ -407,7 +408,10 @@ class MultiRobotLocalizationEnv(ParallelEnv):
         entropy_before = self._entropy.copy()
         self._summarize()
         gains = entropy_before - self._entropy
-        rewards = gains - cfg.step_cost - cfg.collision_penalty * collided
+        rewards = np.array([
+            step_reward(float(g), bool(c), cfg.step_cost, cfg.collision_penalty, 0.0)
+            for g, c in zip(gains, collided, strict=True)
+        ])
         if cfg.team_reward:
             rewards = np.where(acting, rewards[acting].sum(), rewards)
         agents = [self.possible_agents[i] for i in np.flatnonzero(acting)]
@@ -532,11 +536,18 @@ class MultiRobotLocalizationEnv(ParallelEnv):
             self._means = np.array([mean for mean, _ in summaries])
             self._covs = np.array([cov for _, cov in summaries])
             self._entropy = np.array([b.entropy() for b in beliefs])
-        pos_std = np.sqrt(np.maximum(np.linalg.eigvalsh(self._covs[:, :2, :2])[:, -1], 0.0))
-        head_std = np.sqrt(np.maximum(self._covs[:, 2, 2], 0.0))
         cfg = self.config
-        self._localized = ((pos_std <= cfg.localized_position_std)
-                           & (head_std <= cfg.localized_heading_std))
+        errors = self.poses - self._means
+        self._pos_err = np.hypot(errors[:, 0], errors[:, 1])
+        self._head_err = np.abs(wrap_angle(errors[:, 2]))
+        metrics = [
+            belief_metrics(cov, float(pe), float(he), False, cfg.localized_position_std,
+                           cfg.localized_heading_std, cfg.success_position_tol,
+                           cfg.success_heading_tol)
+            for cov, pe, he in zip(self._covs, self._pos_err, self._head_err, strict=True)
+        ]
+        self._localized = np.array([m[2] for m in metrics], dtype=np.bool_)
+        self._success = np.array([m[3] for m in metrics], dtype=np.bool_)
 
     def _observe(self, i: int) -> NDArray[np.float32]:
         """Robot i's observation: its belief, its scan and its detections (never the truth)."""
@@ -569,17 +580,12 @@ class MultiRobotLocalizationEnv(ParallelEnv):
 
     def _info(self, i: int, collided: NDArray, gain: float) -> dict[str, Any]:
         cfg = self.config
-        err = self.poses[i] - self._means[i]
-        pos_err = float(np.hypot(err[0], err[1]))
-        head_err = float(abs(wrap_angle(err[2])))
-        localized = bool(self._localized[i])
         return {
-            "pose_error": pos_err,
-            "heading_error": head_err,
+            "pose_error": float(self._pos_err[i]),
+            "heading_error": float(self._head_err[i]),
             "entropy": float(self._entropy[i]),
-            "localized": localized,
-            "is_success": localized and pos_err <= cfg.success_position_tol
-            and head_err <= cfg.success_heading_tol,
+            "localized": bool(self._localized[i]),
+            "is_success": bool(self._success[i]),
             "collisions": int(self._collisions[i]),
             "fused": bool(self._fused_pairs[i].any()),
             "detected": [self.possible_agents[j] for j in np.flatnonzero(self._det_seen[i])],

@@ -64,6 +64,7 @@ from active_loc.envs.landmark_core import (
     build_motion,
     fixed_landmark_map,
 )
+from active_loc.envs.metrics import belief_metrics
 from active_loc.envs.observations import (
     BELIEF_HEADER,
     SLOT_SIZE,
@@ -451,16 +452,10 @@ class ParticleCore(StateViews):
         pose = row[X_POSE : X_POSE + 3]
         pos_err = float(np.hypot(pose[0] - mean[0], pose[1] - mean[1]))
         head_err = float(abs(wrap_angle(pose[2] - mean[2])))
-        pos_std = float(np.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0)))
-        head_std = float(np.sqrt(max(cov[2, 2], 0.0)))
-        localized = pos_std <= cfg.localized_position_std and head_std <= cfg.localized_heading_std
         # with a kidnapping ahead, localizing now is not yet the end of the task
-        kidnap_pending = cfg.kidnap and not self.kidnapped
-        success = (
-            localized
-            and not kidnap_pending
-            and pos_err <= cfg.success_position_tol
-            and head_err <= cfg.success_heading_tol
+        pos_std, head_std, localized, success, terminal = belief_metrics(
+            cov, pos_err, head_err, cfg.kidnap and not self.kidnapped, cfg.localized_position_std,
+            cfg.localized_heading_std, cfg.success_position_tol, cfg.success_heading_tol,
         )
         stats[S_POS_ERR] = pos_err
         stats[S_HEAD_ERR] = head_err
@@ -469,10 +464,8 @@ class ParticleCore(StateViews):
         stats[S_COLLIDED] = 1.0 if collided else 0.0
         stats[S_LOCALIZED] = 1.0 if localized else 0.0
         stats[S_SUCCESS] = 1.0 if success else 0.0
-        stats[S_TERMINAL] = 1.0 if localized and not kidnap_pending else 0.0
-        stats[S_OUTCOME] = 0.0 if first else outcome_term(
-            stats[S_TERMINAL] > 0.5, success, cfg.outcome_reward
-        )
+        stats[S_TERMINAL] = 1.0 if terminal else 0.0
+        stats[S_OUTCOME] = 0.0 if first else outcome_term(terminal, success, cfg.outcome_reward)
         stats[S_KIDNAPPED] = 1.0 if kidnapped_now else 0.0
         stats[S_N_VISIBLE] = float(self.visible[0].sum()) if not self.grid_mode else 0.0
         self._write_observation(mean, cov, entropy)

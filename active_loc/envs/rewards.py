@@ -55,6 +55,16 @@ def uncertainty_reward(
     return prev_trace - trace
 
 
+@numba.njit(cache=True, nogil=True)
+def step_reward(
+    uncertainty: float, collided: bool, step_cost: float, collision_penalty: float,
+    outcome: float,
+) -> float:
+    """The reward of one step: the sum of the terms :func:`reward_terms` names (every env, and
+    the kernels of the vector envs, total them here)."""
+    return uncertainty - step_cost - (collision_penalty if collided else 0.0) + outcome
+
+
 def reward_terms(
     reward: str, uncertainty: float, collided: bool, step_cost: float, collision_penalty: float,
     outcome: float | None = None,

@@ -49,6 +49,7 @@ from active_loc.envs.landmark_core import (
     LandmarkCore,
 )
 from active_loc.envs.localization_env import ActiveLocalizationEnv, build_frame, info_from_stats
+from active_loc.envs.rewards import step_reward
 from active_loc.parallel import set_thread_count
 
 #: the fewest members a worker thread of the batched engine steps (fewer: one thread)
@@ -399,9 +400,8 @@ def step_outcomes(
             terminated[b] = False
             continue
         collided = state[b, X_STATS + S_COLLIDED] > 0.5
-        penalty = collision_penalty if collided else 0.0
-        rewards[b] = state[b, X_STATS + S_UNCERTAINTY_REWARD] - step_cost - penalty
-        rewards[b] += state[b, X_STATS + S_OUTCOME]
+        rewards[b] = step_reward(state[b, X_STATS + S_UNCERTAINTY_REWARD], collided, step_cost,
+                                 collision_penalty, state[b, X_STATS + S_OUTCOME])
         terminated[b] = terminate and state[b, X_STATS + S_TERMINAL] > 0.5
         collisions[b] += collided
         steps[b] += 1

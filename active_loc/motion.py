@@ -11,12 +11,16 @@ plus ``eps ~ N(0, Q)``. Its Jacobian with respect to the pose is
          [0, 0,  1]].
 
 The kernels work on one pose; :class:`UnicycleModel` applies them to batches ``(..., 3)``.
-Map awareness (a move that would leave the workspace is blocked) lives in
-:func:`move_within_bounds`, used by the simulator for the true robot.
+Map awareness lives here too, one rule per kind of map: a move that would leave a landmark
+map's box is blocked (:func:`move_within_bounds`), and on an occupancy grid a move that would
+cross a wall (:func:`move_on_grid`). The simulators move the true robot with them, and the
+planner view its hypothetical robot.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numba
@@ -24,6 +28,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from active_loc.geometry import wrap_angle, wrap_angle_scalar
+from active_loc.maps.occupancy import OccupancyGrid
+from active_loc.sensors.lidar import cast_ray
 
 
 @numba.njit(cache=True, nogil=True)
@@ -165,3 +171,49 @@ class UnicycleModel:
         out = mean + noise
         out[..., 2] = wrap_angle(out[..., 2])
         return out
+
+
+def move_on_grid(
+    pose: NDArray[np.float64],
+    v: float,
+    omega: float,
+    dt: float,
+    noise: NDArray[np.float64],
+    grid: OccupancyGrid,
+    blocked_at: Callable[[NDArray[np.float64]], bool] | None = None,
+) -> bool:
+    """Move ``pose`` ``(3,)`` (m, m, rad) in place by the unicycle step with additive
+    ``noise`` ``(3,)``, on an occupancy grid: the robot always turns, and it translates unless
+    the straight move crosses an occupied or unknown cell (no tunnelling), ends off the free
+    space, or ``blocked_at(target)`` says something else stands there (people). Returns whether
+    the translation was blocked. The simulators move the true robot with it, planners a
+    hypothetical one (zero noise)."""
+    heading = float(pose[2])
+    dx = v * math.cos(heading) * dt + float(noise[0])
+    dy = v * math.sin(heading) * dt + float(noise[1])
+    pose[2] = wrap_angle_scalar(heading + omega * dt + float(noise[2]))
+    distance = math.hypot(dx, dy)
+    if distance == 0.0:
+        return False
+    values, res, ox, oy, c, s = grid.kernel_arrays()
+    free_run = cast_ray(values, res, ox, oy, c, s, float(pose[0]), float(pose[1]),
+                        math.atan2(dy, dx), distance, True)
+    target = np.array([pose[0] + dx, pose[1] + dy])
+    if free_run < distance or not grid.is_free(target):
+        return True
+    if blocked_at is not None and blocked_at(target):
+        return True
+    pose[0], pose[1] = target
+    return False
+
+
+def move_on_cells(
+    free: NDArray[np.bool_], x: int, y: int, dx: int, dy: int
+) -> tuple[int, int, bool]:
+    """One move of ``(dx, dy)`` cells from cell ``(x, y)`` on a free mask ``(X, Y)`` (the maze
+    world): blocked, staying in place, when the target is off the mask or not free. Returns
+    the new cell and whether the move was blocked."""
+    tx, ty = x + dx, y + dy
+    if 0 <= tx < free.shape[0] and 0 <= ty < free.shape[1] and free[tx, ty]:
+        return tx, ty, False
+    return x, y, True

@@ -24,6 +24,7 @@ from active_loc.maps.maze import (
     random_start,
 )
 from active_loc.maps.occupancy import OccupancyGrid
+from active_loc.motion import move_on_cells
 from active_loc.sensors.depth import DepthSensor
 
 TURN_LEFT, TURN_RIGHT, MOVE_FORWARD = 0, 1, 2
@@ -161,10 +162,8 @@ def _move(
     if a == TURN_RIGHT:
         return (x, y, (h - 1) % N_HEADINGS), False
     dx, dy = _STEPS[h]
-    nx, ny = x + dx, y + dy
-    if 0 <= nx < free.shape[0] and 0 <= ny < free.shape[1] and free[nx, ny]:
-        return (nx, ny, h), False
-    return (x, y, h), True
+    x, y, blocked = move_on_cells(free, x, y, dx, dy)
+    return (x, y, h), blocked
 
 
 def _action_index(action: Any) -> int:

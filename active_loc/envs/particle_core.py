@@ -76,8 +76,8 @@ from active_loc.geometry import wrap_angle
 from active_loc.maps import LandmarkMap, OccupancyGrid, random_landmark_map
 from active_loc.maps.generators import GENERATORS
 from active_loc.maps.pool import pool_map_rng, shared_pool
-from active_loc.motion import move_within_bounds
-from active_loc.sensors.lidar import LidarSensor, cast_ray
+from active_loc.motion import move_on_grid, move_within_bounds
+from active_loc.sensors.lidar import LidarSensor
 from active_loc.sensors.range_table import RangeTable
 
 HISTOGRAM_CELLS = 8
@@ -411,26 +411,9 @@ class ParticleCore(StateViews):
             box = self.state[0, X_BOX : X_BOX + 4]
             walls = bool(self.state[0, X_BOX + B_WALLS] > 0.5)
             return bool(move_within_bounds(pose, v, omega, self.config.dt, noise, box, walls))
-        dt = self.config.dt
-        dx = v * np.cos(pose[2]) * dt + noise[0]
-        dy = v * np.sin(pose[2]) * dt + noise[1]
-        pose[2] = wrap_angle(pose[2] + omega * dt + noise[2])
-        distance = float(np.hypot(dx, dy))
-        if distance == 0.0:
-            return False
-        # blocked if the straight move crosses an occupied or unknown cell (no tunnelling)
-        values, res, ox, oy, c, s = self._grid_arrays  # type: ignore[misc]
-        free_run = cast_ray(
-            values, res, ox, oy, c, s, pose[0], pose[1], float(np.arctan2(dy, dx)), distance,
-            True,
-        )
-        target = np.array([pose[0] + dx, pose[1] + dy])
-        if free_run < distance or not lmap.is_free(target):
-            return True
-        if self.crowd is not None and self.crowd.blocks(target):
-            return True
-        pose[0], pose[1] = target
-        return False
+        crowd = self.crowd
+        return move_on_grid(pose, v, omega, self.config.dt, noise, lmap,
+                            crowd.blocks if crowd is not None else None)
 
     # -- metrics and observation ---------------------------------------------------------------
 

@@ -14,11 +14,10 @@ from active_loc.beliefs.ekf_filterpy import FilterpyEKFBelief
 from active_loc.beliefs.grid import GridBelief
 from active_loc.beliefs.mcl import MCLBelief
 from active_loc.envs.actions import ControlLimits
-from active_loc.geometry import wrap_angle
 from active_loc.maps import LandmarkMap, OccupancyGrid
-from active_loc.motion import UnicycleModel
+from active_loc.motion import UnicycleModel, move_on_grid, move_within_bounds
 from active_loc.sensors.landmarks import LandmarkSensor
-from active_loc.sensors.lidar import LidarSensor, cast_ray
+from active_loc.sensors.lidar import LidarSensor
 from active_loc.sensors.lidar_lattice import (
     lattice_field_log_likelihood,
     off_map_log_probability,
@@ -27,6 +26,8 @@ from active_loc.sensors.lidar_lattice import (
 from active_loc.sensors.range_table import RangeTable
 
 AnyBelief = EKFBelief | FilterpyEKFBelief | MCLBelief | GridBelief
+_NO_NOISE = np.zeros(3)  # the hypothetical robot moves without noise
+_NO_BOX = np.zeros(4)  # planners do not model a landmark map's border
 
 
 @dataclass(frozen=True)
@@ -163,21 +164,11 @@ class PlannerView:
         noise-free. On a grid map it turns, and moves unless the straight move crosses a wall;
         on a landmark map nothing blocks it. Returns the new pose and whether the move was
         blocked."""
-        dt = self.motion.dt
-        step = float(control[0]) * dt
-        heading = float(pose[2])
-        out = np.array([pose[0], pose[1], wrap_angle(heading + float(control[1]) * dt)])
-        if step == 0.0:
-            return out, False
-        target = pose[:2] + step * np.array([np.cos(heading), np.sin(heading)])
+        out = np.array(pose, dtype=np.float64)
+        v, omega = float(control[0]), float(control[1])
         if isinstance(self.map, OccupancyGrid):
-            direction = heading if step > 0.0 else heading + np.pi
-            values, res, ox, oy, c, s = self.map.kernel_arrays()
-            run = cast_ray(values, res, ox, oy, c, s, float(pose[0]), float(pose[1]),
-                           direction, abs(step), True)
-            if run < abs(step) or not self.map.is_free(target):
-                return out, True
-        out[:2] = target
+            return out, move_on_grid(out, v, omega, self.motion.dt, _NO_NOISE, self.map)
+        move_within_bounds(out, v, omega, self.motion.dt, _NO_NOISE, _NO_BOX, False)
         return out, False
 
     def predict(self, belief: AnyBelief, control: NDArray[np.float64], blocked: bool,

@@ -8,6 +8,7 @@ is an error. Discrete actions index :data:`PRIMITIVES`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from gymnasium import spaces
@@ -87,3 +88,88 @@ def controls_to_continuous(
     a_v = 2.0 * (controls[..., 0] - v_min) / span - 1.0
     a_w = controls[..., 1] / omega_max if omega_max > 0 else np.zeros_like(controls[..., 1])
     return np.stack([a_v, a_w], axis=-1)
+
+
+def check_action(action: Any, space: spaces.Space, name: str = "action") -> Any:
+    """One action checked against its space before anything moves: for a ``Discrete`` space
+    an integer index in range (an int, a numpy integer or a 0-d integer array; no bool), for
+    a ``Box`` real numbers of the space's shape, finite. Array-likes (lists, torch tensors on
+    the CPU) are converted. Returns the index as an int, or the action as an array.
+
+    Raises:
+        ValueError: naming ``name`` and what is allowed.
+    """
+    if isinstance(space, spaces.Discrete):
+        if isinstance(action, (bool, np.bool_)):
+            index = None
+        elif isinstance(action, (int, np.integer)):
+            index = int(action)
+        else:
+            array = _as_array(action)
+            ok = array is not None and array.ndim == 0 and array.dtype.kind in "iu"
+            index = int(array) if ok else None  # type: ignore[arg-type]
+        if index is None:
+            raise ValueError(f"{name} must be an integer index, got {action!r}")
+        low, high = int(space.start), int(space.start + space.n)
+        if not low <= index < high:
+            raise ValueError(f"{name} must be an integer in [{low}, {high}), got {index}")
+        return index
+    array = _as_array(action)
+    if array is None or array.shape != space.shape:
+        shape = None if array is None else array.shape
+        raise ValueError(f"{name} must have shape {space.shape}, got {shape}")
+    if array.dtype.kind not in "fiu":
+        raise ValueError(f"{name} must be real numbers, got dtype {array.dtype}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} contains NaN or inf: {action!r}")
+    return array
+
+
+def check_actions(
+    actions: Any, space: spaces.Space, active: NDArray[np.bool_], check_finite: bool = True
+) -> NDArray:
+    """A batch of actions ``(n, *space.shape)``, one per sub-env, checked as
+    :func:`check_action` checks one, before any sub-env moves; only the ``active`` ``(n,)``
+    sub-envs' values are checked (with ``check_finite``, also for NaN and inf). Raises
+    ``ValueError`` naming the first bad sub-env."""
+    n = active.shape[0]
+    array = _as_array(actions)
+    if array is None:
+        raise ValueError(f"expected {n} actions (one per sub-env), got {actions!r}")
+    if isinstance(space, spaces.Discrete):
+        if array.shape != (n,) or array.dtype.kind not in "iu":
+            raise ValueError(f"actions must be integers of shape ({n},) for a discrete action "
+                             f"space, got {array.dtype} {array.shape}")
+        low, high = int(space.start), int(space.start + space.n)
+        bad = active & ((array < low) | (array >= high))
+        if bad.any():
+            b = int(np.flatnonzero(bad)[0])
+            raise ValueError(
+                f"the action of sub-env {b} must be in [{low}, {high}), got {array[b]}"
+            )
+    elif isinstance(space, spaces.Box):
+        shape = (n, *space.shape)
+        if array.shape != shape or array.dtype.kind not in "fiu":
+            raise ValueError(f"actions must be real numbers of shape {shape}, got {array.dtype} "
+                             f"{array.shape}")
+        if check_finite:
+            finite = np.isfinite(array.reshape(n, -1)).all(axis=1) | ~active
+            if not finite.all():
+                b = int(np.flatnonzero(~finite)[0])
+                raise ValueError(f"the action of sub-env {b} contains NaN or inf: {array[b]!r}")
+    elif len(array) != n:
+        raise ValueError(f"expected {n} actions (one per sub-env), got {len(array)}")
+    return array
+
+
+def _as_array(value: Any) -> NDArray | None:
+    """``value`` as a numpy array (torch tensors included), or None when it is not one."""
+    if isinstance(value, np.ndarray):
+        return value
+    detach = getattr(value, "detach", None)  # a torch tensor: to the CPU, then numpy
+    if detach is not None:
+        value = detach().cpu().numpy()
+    try:
+        return np.asarray(value)
+    except (TypeError, ValueError):
+        return None

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from active_loc.envs.actions import action_space
+from active_loc.envs.actions import action_space, check_action
 from active_loc.envs.association_core import A_ACCURACY, AssociationCore
 from active_loc.envs.config import LocalizationConfig
 from active_loc.envs.grid_core import GridCore
@@ -165,7 +165,6 @@ class ActiveLocalizationEnv(gym.Env):
             -1.0, 1.0, (self.core.obs.shape[1],), dtype=np.float32
         )
         self._continuous = self.config.action_type == "continuous"
-        self._n_actions = len(self.core.models.primitives)
         # config values read on every step, as plain attributes
         self._reward_name = self.config.reward
         self._step_cost = float(self.config.step_cost)
@@ -203,10 +202,7 @@ class ActiveLocalizationEnv(gym.Env):
         if not self._has_reset:
             raise RuntimeError("call reset() before step()")
         core = self.core
-        if self._continuous:
-            self._write_continuous(action)
-        else:
-            self._write_discrete(action)
+        self._write_action(action)
         if core.step((self.np_random,)) >= 0:
             raise ValueError(f"action contains NaN or inf: {action!r}")
         self._steps += 1
@@ -273,30 +269,15 @@ class ActiveLocalizationEnv(gym.Env):
 
     # -- helpers ----------------------------------------------------------------------------
 
-    def _write_continuous(self, action: Any) -> None:
-        """Validate a continuous action and write it into ``core.actions[0]``."""
-        shape = getattr(action, "shape", None)
-        if shape is None:
-            action = np.asarray(action)
-            shape = action.shape
-        if shape != (2,):
-            raise ValueError(
-                f"action must have shape (2,) for action_type='continuous', got {shape}"
-            )
-        if action.dtype.kind not in "fiu":
-            raise ValueError(f"action must be real numbers, got dtype {action.dtype}")
-        self.core.actions[0] = action
-
-    def _write_discrete(self, action: Any) -> None:
-        """Validate a discrete action and write its primitive's control."""
-        if not _is_integer(action):
-            raise ValueError(
-                f"action must be an integer index for action_type='discrete', got {action!r}"
-            )
-        index = int(action)
-        if not 0 <= index < self._n_actions:
-            raise ValueError(f"action must be an integer in [0, {self._n_actions}), got {index}")
-        self.core.actions[0] = self.core.models.primitives[index]
+    def _write_action(self, action: Any) -> None:
+        """Check an action (:func:`~active_loc.envs.actions.check_action`) and write its
+        control into ``core.actions[0]``: the continuous action as it is (the core decodes
+        it), a discrete one as its primitive's control."""
+        checked = check_action(action, self.action_space)
+        if self._continuous:
+            self.core.actions[0] = checked
+        else:
+            self.core.actions[0] = self.core.models.primitives[checked]
 
     def _info(self, row: list[float]) -> dict[str, Any]:
         """The info dict from the core's state row (as a list of floats)."""
@@ -395,10 +376,3 @@ def build_frame(
         bounds=lmap.bounds, landmarks=lmap.positions, visible=core.visible[b, :n].copy(),
         fov=core.config.fov, max_range=core.config.max_range, **common,
     )
-
-
-def _is_integer(action: Any) -> bool:
-    """An int, a numpy integer, or a 0-d integer array (what SB3's predict returns); no bool."""
-    if isinstance(action, np.ndarray):
-        return action.ndim == 0 and action.dtype.kind in "iu"
-    return isinstance(action, (int, np.integer)) and not isinstance(action, (bool, np.bool_))

@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from active_loc.beliefs.grid import GridBelief, MotionKernel
+from active_loc.envs.actions import check_action
 from active_loc.envs.rewards import reward_terms, step_reward
 from active_loc.maps.maze import (
     HEADING_STEPS,
@@ -166,21 +167,13 @@ def _move(
     return (x, y, h), blocked
 
 
+_ACTION_SPACE = gym.spaces.Discrete(3)
+
+
 def _action_index(action: Any) -> int:
-    """An int, a numpy integer or a 0-d integer array in [0, 3); anything else raises."""
-    if isinstance(action, np.ndarray):
-        ok = action.ndim == 0 and action.dtype.kind in "iu"
-    else:
-        ok = _is_int(action)
-    if not ok:
-        raise ValueError(
-            f"action must be an integer index in [0, 3) (turn left, turn right, move forward), "
-            f"got {action!r}"
-        )
-    index = int(action)
-    if not 0 <= index < 3:
-        raise ValueError(f"action must be an integer in [0, 3), got {index}")
-    return index
+    """The index in [0, 3) of a maze action (turn left, turn right, move forward), checked by
+    :func:`~active_loc.envs.actions.check_action`."""
+    return check_action(action, _ACTION_SPACE, "action (turn left 0, turn right 1, forward 2)")
 
 
 @dataclass(frozen=True)

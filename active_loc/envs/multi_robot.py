@@ -65,7 +65,7 @@ from pettingzoo.utils.conversions import parallel_to_aec
 from active_loc.beliefs.ekf import EKFBelief
 from active_loc.beliefs.entropy import gaussian_entropy
 from active_loc.beliefs.mcl import FreeSpace, MCLBelief
-from active_loc.envs.actions import ControlLimits, action_space
+from active_loc.envs.actions import ControlLimits, action_space, check_action
 from active_loc.envs.config import _integer, _one_of, _positive, _stds
 from active_loc.envs.metrics import belief_metrics
 from active_loc.envs.multi_robot_fusion import (
@@ -447,26 +447,7 @@ class MultiRobotLocalizationEnv(ParallelEnv):
         controls = np.zeros((self.n, 2))
         for a in self.agents:
             i = int(a.rsplit("_", 1)[1])
-            action = actions[a]
-            if self.config.action_type == "continuous":
-                arr = np.asarray(action)
-                if arr.shape != (2,):
-                    raise ValueError(f"actions[{a!r}] must have shape (2,) for "
-                                     f"action_type='continuous', got {arr.shape}")
-                if arr.dtype.kind not in "fiu":
-                    raise ValueError(f"actions[{a!r}] must be real numbers, got dtype {arr.dtype}")
-                if not np.all(np.isfinite(arr)):
-                    raise ValueError(f"actions[{a!r}] contains NaN or inf: {action!r}")
-            else:
-                ok = isinstance(action, (int, np.integer)) or (
-                    isinstance(action, np.ndarray) and action.shape == ()
-                    and action.dtype.kind in "iu")
-                if isinstance(action, bool) or not ok:
-                    raise ValueError(f"actions[{a!r}] must be an integer index for "
-                                     f"action_type='discrete', got {action!r}")
-                if not 0 <= int(action) < self._act_spaces[a].n:  # type: ignore[attr-defined]
-                    raise ValueError(f"actions[{a!r}] must be in [0, "
-                                     f"{self._act_spaces[a].n}), got {action!r}")  # type: ignore[attr-defined]
+            action = check_action(actions[a], self._act_spaces[a], f"actions[{a!r}]")
             controls[i] = self.limits.decode(action)
         return controls
 

@@ -31,6 +31,7 @@ import numpy as np
 from gymnasium.utils import seeding
 from numpy.typing import NDArray
 
+from active_loc.envs.actions import check_actions
 from active_loc.envs.landmark_core import (
     S_COLLIDED,
     S_ENTROPY,
@@ -348,41 +349,6 @@ class MemberEngine:
 
     def frame(self, b: int) -> Any:
         return self.envs[b].render()
-
-
-def check_actions(
-    actions: Any, space: gym.Space, active: NDArray[np.bool_], check_finite: bool = True
-) -> NDArray:
-    """``actions`` as an array ``(n, *space.shape)``, checked before any sub-env moves: its
-    shape and dtype, and for the active sub-envs (``active`` ``(n,)``) an index in range
-    (a ``Discrete`` space) or, with ``check_finite``, no NaN or inf (a ``Box``). Raises
-    ``ValueError`` naming the first bad sub-env."""
-    n = active.shape[0]
-    array = np.asarray(actions)
-    if isinstance(space, gym.spaces.Discrete):
-        if array.shape != (n,) or array.dtype.kind not in "iu":
-            raise ValueError(f"actions must be integers of shape ({n},) for a discrete action "
-                             f"space, got {array.dtype} {array.shape}")
-        low, high = int(space.start), int(space.start + space.n)
-        bad = active & ((array < low) | (array >= high))
-        if bad.any():
-            b = int(np.flatnonzero(bad)[0])
-            raise ValueError(
-                f"the action of sub-env {b} must be in [{low}, {high}), got {array[b]}"
-            )
-    elif isinstance(space, gym.spaces.Box):
-        shape = (n, *space.shape)
-        if array.shape != shape or array.dtype.kind not in "fiu":
-            raise ValueError(f"actions must be real numbers of shape {shape}, got {array.dtype} "
-                             f"{array.shape}")
-        if check_finite:
-            finite = np.isfinite(array.reshape(n, -1)).all(axis=1) | ~active
-            if not finite.all():
-                b = int(np.flatnonzero(~finite)[0])
-                raise ValueError(f"the action of sub-env {b} contains NaN or inf: {array[b]!r}")
-    elif len(array) != n:
-        raise ValueError(f"expected {n} actions (one per sub-env), got {len(array)}")
-    return array
 
 
 @numba.njit(cache=True, nogil=True)

@@ -388,7 +388,7 @@ def test_bad_actions_raise_and_change_nothing(action, match: str) -> None:
 def test_bad_discrete_actions() -> None:
     e = parallel_env(2, action_type="discrete")
     e.reset(seed=0)
-    with pytest.raises(ValueError, match=r"actions\['robot_0'\] must be in \[0, 6\)"):
+    with pytest.raises(ValueError, match=r"actions\['robot_0'\] must be an integer in \[0, 6\)"):
         e.step({"robot_0": 6, "robot_1": 0})
     with pytest.raises(ValueError, match=r"actions\['robot_1'\] must be an integer index"):
         e.step({"robot_0": 1, "robot_1": 1.5})

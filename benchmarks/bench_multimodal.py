@@ -18,12 +18,15 @@ over minutes (about 25% on a shared 2-core host) lands on both. Reported:
   gymnasium's ``SyncVectorEnv``;
 * ``reset``: milliseconds per ``reset()`` of a single env, with a new map every episode and
   (head only, ``map_pool``) with a pool of maps;
-* ``split``: where a head step's time goes (:func:`step_split`).
+* ``split``: where a head step's time goes (:func:`step_split`);
+* ``ppo``: PPO through ``train.py`` on the marked_rooms arena of docs/results.md (8 native
+  envs, ``--ppo-minutes`` each): the env's share of the wall time and its steps per second,
+  and (head only) the same with ``map_pool=16``.
 
 It measures and asserts nothing; the targets are printed beside the figures.
 
     python benchmarks/bench_multimodal.py [--repeats 3] [--ids LandmarkMCL-v0,...]
-        [--parts single,native,reset,split] [--json out.json]
+        [--parts single,native,reset,split,ppo] [--head REF] [--json out.json]
 """
 
 from __future__ import annotations
@@ -41,6 +44,9 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 #: the last commit before the batch-first simulator (draws, cores, map pool)
 BASE_COMMIT = "dd08010"
+#: the marked_rooms arena of docs/results.md (GridMCL-v0 with the beam model's range table)
+ARENA = {"map": "marked_rooms", "action_type": "discrete", "lidar_model": "beam",
+         "lidar_range_bins": 360, "min_particles": 5000}
 IDS = (
     "ActiveLoc/LandmarkMCL-v0",
     "ActiveLoc/GridMCL-v0",
@@ -134,11 +140,90 @@ def reset_cost(env_id: str, resets: int, repeats: int, kwargs: dict) -> dict:
     return {"ms": best * 1e3}
 
 
-def step_split(env_id: str, steps: int, kwargs: dict) -> dict:
-    """Seconds per step spent in each part of the head's step (its ``profile`` hooks)."""
-    from active_loc.envs.profiling import profile_steps
+#: which functions' own time counts as which part of a step (by function name)
+SPLIT_PARTS = {
+    "draws": ("standard_normal", "random", "integers", "random_raw", "uniform"),
+    "motion": ("move_particles", "sample_motion", "move_on_grid", "move_within_bounds",
+               "cast_ray", "translate_kernel", "turn_kernel", "predict_arrays",
+               "translation_kernel_arrays", "fractional_kernels"),
+    "likelihood": ("landmark_log_likelihood_kernel", "likelihood_field_table_log_likelihood",
+                   "likelihood_field_skip_log_likelihood", "lattice_field_kernel",
+                   "beam_model_log_likelihood", "log_likelihood", "measure",
+                   "measure_landmarks", "cast_rays", "expected_ranges", "add_log_likelihood",
+                   "update_kernel", "normalize_log_weights"),
+    "resampling": ("kld_resample", "resample_particles", "systematic_resample",
+                   "stratified_resample", "stream_free_poses"),
+    "metrics and observation": (
+        "_summary_blocks", "_covariance_blocks", "binned_entropy", "histogram_entropy",
+        "weighted_mean", "weighted_covariance", "effective_sample_size", "mass_histogram",
+        "moments_kernel", "entropy_kernel", "write_belief_header", "write_landmark_slots",
+        "slogdet", "eigvalsh", "belief_metrics", "bincount", "marginal_xy",
+        "depth_kernel", "observation_kernel"),
+}
 
-    return profile_steps(env_id, steps, kwargs)
+
+def step_split(env_id: str, steps: int, kwargs: dict) -> dict:
+    """Microseconds per step in each part of :data:`SPLIT_PARTS`, and the rest ("Python
+    glue"): the wall time of ``steps`` random steps (resets included) without a profiler,
+    less the parts' own time measured under cProfile on the same steps. The kernels are single
+    calls, so their times are not inflated by the profiler; the glue is what remains."""
+    import cProfile
+    import pstats
+
+    import gymnasium as gym
+
+    env = gym.make(env_id, **kwargs)
+    actions = _actions(env.action_space, steps, 0)
+
+    def run() -> float:
+        env.reset(seed=0)
+        start = time.perf_counter()
+        for action in actions:
+            _, _, terminated, truncated, _ = env.step(action)
+            if terminated or truncated:
+                env.reset()
+        return time.perf_counter() - start
+
+    run()  # warm-up
+    wall = min(run() for _ in range(2))
+    profiler = cProfile.Profile()
+    profiler.enable()
+    run()
+    profiler.disable()
+    stats = pstats.Stats(profiler).stats  # type: ignore[attr-defined]
+    own: dict[str, float] = dict.fromkeys(SPLIT_PARTS, 0.0)
+    for (_, _, name), (_, _, tottime, _, _) in stats.items():
+        # "<method 'random' of 'numpy.random._generator.Generator' objects>", or a plain name
+        short = name.split("'")[1] if name.startswith("<") and "'" in name else name
+        for part, names in SPLIT_PARTS.items():
+            if short in names:
+                own[part] += tottime
+    env.close()
+    split = {part: 1e6 * t / steps for part, t in own.items()}
+    split["Python glue"] = max(0.0, 1e6 * wall / steps - sum(split.values()))
+    split["step"] = 1e6 * wall / steps
+    return {"us_per_step": split}
+
+
+def ppo_split(env_kwargs: dict, minutes: float, n_envs: int, vec_env: str) -> dict:
+    """PPO through ``train.py`` on GridMCL-v0 with ``env_kwargs`` for ``minutes``: the env's
+    share of the wall time and its steps per second (``config.json``'s ``result``)."""
+    import tempfile
+
+    from active_loc.train import TrainArgs, train
+
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "run"
+        train(TrainArgs(
+            env="ActiveLoc/GridMCL-v0", env_kwargs=json.dumps(env_kwargs), algo="ppo",
+            total_steps=10**9, n_envs=n_envs, vec_env=vec_env, n_steps=256, eval_freq=0,
+            checkpoint_freq=0, time_limit_minutes=minutes, progress_bar=False, out=out,
+        ))
+        result = json.loads((out / "config.json").read_text())["result"]
+    split = result["env_time"]
+    return {"timesteps": result["timesteps"], "env_share": split["env_share"],
+            "env_steps_per_s": split["env_steps_per_s"],
+            "steps_per_s": result["timesteps"] / result["wall_time_s"]}
 
 
 def worker(request: dict) -> dict:
@@ -146,19 +231,21 @@ def worker(request: dict) -> dict:
 
     kind = request.pop("kind")
     return {"single": single_rate, "vector": vector_rate, "reset": reset_cost,
-            "split": step_split}[kind](**request)
+            "split": step_split, "ppo": ppo_split}[kind](**request)
 
 
 # --- driver ---------------------------------------------------------------------------------
 
 
-def base_checkout() -> Path:
-    """The worktree of :data:`BASE_COMMIT` (made on first use)."""
-    path = Path(tempfile.gettempdir()) / f"active_loc-base-{BASE_COMMIT}"
+def checkout(ref: str) -> Path:
+    """A worktree of commit ``ref`` in the temporary directory (made on first use)."""
+    sha = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", ref], check=True,
+                         capture_output=True, text=True).stdout.strip()
+    path = Path(tempfile.gettempdir()) / f"active_loc-{sha}"
     if not (path / "active_loc").is_dir():
         subprocess.run(["git", "-C", str(ROOT), "worktree", "prune"], check=True)
         subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "--force",
-                        str(path), BASE_COMMIT], check=True, capture_output=True)
+                        str(path), sha], check=True, capture_output=True)
     return path
 
 
@@ -190,12 +277,16 @@ def main() -> None:
     parser.add_argument("--maze-calls", type=int, default=300)
     parser.add_argument("--resets", type=int, default=5)
     parser.add_argument("--ids", default=",".join(i.split("/")[1] for i in IDS))
-    parser.add_argument("--parts", default="single,native,reset,split")
+    parser.add_argument("--parts", default="single,native,reset,split,ppo")
+    parser.add_argument("--ppo-minutes", type=float, default=3.0)
+    parser.add_argument("--head", default=None,
+                        help="time this commit (a worktree) instead of the checkout's files")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
     ids = [f"ActiveLoc/{name}" for name in args.ids.split(",")]
     parts = args.parts.split(",")
-    versions = {"base": base_checkout(), "head": ROOT}
+    head = ROOT if args.head is None else checkout(args.head)
+    versions = {"base": checkout(BASE_COMMIT), "head": head}
     results: list[dict] = []
 
     def report(row: dict) -> None:
@@ -209,12 +300,11 @@ def main() -> None:
         for name, source in versions.items():
             row[name] = measure(source, dict(request))
         if head_only is not None:
-            row["head_variant"] = measure(ROOT, dict(head_only))
-        base, head = row["base"], row["head"]
-        key = "steps_per_s" if "steps_per_s" in head else "ms"
-        if key in base and key in head:
-            row["ratio"] = (head[key] / base[key] if key == "steps_per_s"
-                            else base[key] / head[key])
+            row["head_variant"] = measure(head, dict(head_only))
+        old, new = row["base"], row["head"]
+        key = "steps_per_s" if "steps_per_s" in new else "ms"
+        if key in old and key in new:
+            row["ratio"] = new[key] / old[key] if key == "steps_per_s" else old[key] / new[key]
         report(row)
 
     for env_id in ids:
@@ -237,10 +327,15 @@ def main() -> None:
                     {**request, "kwargs": {"map_pool": 8}})
         if "split" in parts:
             row = {"id": env_id, "case": "split",
-                   "head": measure(ROOT, {"kind": "split", "env_id": env_id,
+                   "head": measure(head, {"kind": "split", "env_id": env_id,
                                           "steps": _steps_for(env_id, args) // 2,
                                           "kwargs": {}})}
             report(row)
+    if "ppo" in parts:
+        request = {"kind": "ppo", "env_kwargs": ARENA, "minutes": args.ppo_minutes,
+                   "n_envs": 8, "vec_env": "native"}
+        compare("ActiveLoc/GridMCL-v0 arena", "ppo", request,
+                {**request, "env_kwargs": {**ARENA, "map_pool": 16}})
     print("\ntargets:", json.dumps(TARGETS, indent=1))
 
 

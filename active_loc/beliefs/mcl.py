@@ -49,6 +49,7 @@ from __future__ import annotations
 import copy as _copy
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numba
 import numpy as np
@@ -56,6 +57,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from active_loc.beliefs.particle_stats import (
     ENTROPY_BINS,
+    MAX_DENSE_BINS,
     bin_hash,
     kld_limit,
     logsumexp,
@@ -928,7 +930,7 @@ class MCLBelief:
         self._summary: ParticleSummary | None = None
         self._initialized = False
         #: reusable arrays for a step's draws (see :meth:`_buffer`)
-        self._buffers: dict[str, NDArray] = {}
+        self._buffers: dict[str, Any] = {}
         self.reinitialized = False
         self.n_reinitializations = 0
         self.blocked = False
@@ -1195,6 +1197,25 @@ class MCLBelief:
                                      sensor.noise_cov, known_correspondence)
         self.update(ll, rng)
 
+    def _entropy_grid(self) -> tuple[NDArray, NDArray, NDArray] | None:
+        """The dense grid of entropy bins over the free space's box (scratch for
+        :func:`~active_loc.beliefs.particle_stats.dense_binned_entropy`), or None when it would
+        have more than ``MAX_DENSE_BINS`` cells."""
+        grid = self._buffers.get("entropy_grid")
+        if grid is None:
+            dx, dy, dth = self.entropy_bins
+            x_min, y_min, x_max, y_max = self.free_space.box
+            ix0, iy0 = math.floor(x_min / dx), math.floor(y_min / dy)
+            nx, ny = math.floor(x_max / dx) - ix0 + 1, math.floor(y_max / dy) - iy0 + 1
+            nh = math.floor(2.0 * math.pi / dth) + 1
+            if nx * ny * nh > MAX_DENSE_BINS:
+                return None
+            origin = np.array([ix0, iy0, nx, ny, nh], dtype=np.int64)
+            grid = self._buffers["entropy_grid"] = (
+                origin, np.zeros(nx * ny * nh), np.empty(self.n_particles, dtype=np.int64)
+            )
+        return grid  # type: ignore[return-value]
+
     def _flags(self, name: str) -> NDArray[np.bool_]:
         """This belief's reusable bool array ``name`` ``(K_max,)``."""
         flags = self._buffers.get(name)
@@ -1260,7 +1281,7 @@ class MCLBelief:
             dx_dy_dth = self.entropy_bins
             entropy, ess = summarize_particles(
                 self._particles[0, :n], self._log_weights[0, :n], dx_dy_dth, use_parallel(),
-                weights, mean, cov,
+                weights, mean, cov, self._entropy_grid(),
             )
             for arr in (weights, mean, cov):
                 arr.setflags(write=False)

@@ -336,6 +336,7 @@ _covariance_blocks_parallel = parallel_twin(_covariance_blocks)
 def summarize_particles(
     particles: NDArray, log_w: NDArray, bins: NDArray, parallel: bool,
     weights: NDArray, mean: NDArray, cov: NDArray,
+    grid: tuple[NDArray, NDArray, NDArray] | None = None,
 ) -> tuple[float, float]:
     """What a step reads of the particle set ``(K, 3)`` with log-weights ``(K,)``, in two
     passes of exp, sin and cos instead of one per statistic.
@@ -371,8 +372,12 @@ def summarize_particles(
     cov[0, 0], cov[0, 1], cov[0, 2] = c[0], c[1], c[2]
     cov[1, 0], cov[1, 1], cov[1, 2] = c[1], c[3], c[4]
     cov[2, 0], cov[2, 1], cov[2, 2] = c[2], c[4], c[5]
-    entropy = float(binned_entropy(particles, weights, bins[0], bins[1], bins[2]))
-    return entropy, float(total * total / sums[1])
+    entropy = math.nan
+    if grid is not None:
+        entropy = dense_binned_entropy(particles, weights, bins[0], bins[1], bins[2], *grid)
+    if math.isnan(entropy):
+        entropy = binned_entropy(particles, weights, bins[0], bins[1], bins[2])
+    return float(entropy), float(total * total / sums[1])
 
 
 @numba.njit(cache=True, nogil=True)
@@ -391,4 +396,56 @@ def binned_entropy(
         p = acc[b]
         if p > 0.0:
             h -= p * np.log(p)
+    return h + np.log(dx * dy * dth)
+
+
+#: the most cells a dense entropy grid may have (float64 each): beyond it, the hash table
+MAX_DENSE_BINS = 4_000_000
+
+
+@numba.njit(cache=True, nogil=True)
+def dense_binned_entropy(
+    particles: NDArray, weights: NDArray, dx: float, dy: float, dth: float, origin: NDArray,
+    acc: NDArray, touched: NDArray,
+) -> float:
+    """:func:`binned_entropy` on a dense grid of bins instead of a hash table: the same
+    number (the bins are summed in the same order of first appearance), without probing.
+
+    Args:
+        origin: ``(5,)`` int64: the bin indices ``(ix0, iy0)`` of the grid's first cell and its
+            size ``(nx, ny, nh)``.
+        acc: ``(nx ny nh,)`` zeros (left as zeros).
+        touched: ``(>= K,)`` int64 scratch.
+
+    Returns:
+        The entropy (nats), or NaN when a particle of positive weight lies off the grid (the
+        caller then takes the hash table).
+    """
+    ix0, iy0, nx, ny, nh = origin[0], origin[1], origin[2], origin[3], origin[4]
+    n_bins = 0
+    off_grid = False
+    for i in range(particles.shape[0]):
+        w = weights[i]
+        if w == 0.0:
+            continue
+        b0, b1, b2 = pose_bin(particles[i, 0], particles[i, 1], particles[i, 2], dx, dy, dth)
+        ix = b0 - ix0
+        iy = b1 - iy0
+        if ix < 0 or iy < 0 or b2 < 0 or ix >= nx or iy >= ny or b2 >= nh:
+            off_grid = True
+            break
+        j = (ix * ny + iy) * nh + b2
+        if acc[j] == 0.0:
+            touched[n_bins] = j
+            n_bins += 1
+        acc[j] += w
+    h = 0.0
+    for t in range(n_bins):
+        j = touched[t]
+        p = acc[j]
+        acc[j] = 0.0
+        if p > 0.0:
+            h -= p * np.log(p)
+    if off_grid:
+        return np.nan
     return h + np.log(dx * dy * dth)

@@ -42,6 +42,7 @@ from active_loc.envs.actions import ControlLimits
 from active_loc.envs.config import LocalizationConfig
 from active_loc.envs.metrics import belief_metrics
 from active_loc.envs.observations import belief_observation_size, write_belief_observation
+from active_loc.envs.outcome import StepOutcome
 from active_loc.envs.rewards import REWARD_CODES, outcome_term, uncertainty_reward
 from active_loc.geometry import wrap_angle_scalar
 from active_loc.maps import LandmarkMap, random_landmark_map
@@ -481,6 +482,35 @@ class StateViews:
     def stats(self) -> NDArray[np.float64]:
         """``(B, N_STATS)`` metrics of the last step (a view)."""
         return self.state[:, X_STATS : X_STATS + N_STATS]
+
+    @property
+    def belief_mean(self) -> NDArray[np.float64]:
+        """``(B, 3)`` belief means after the last step (a view)."""
+        return self.state[:, X_MEAN : X_MEAN + 3]
+
+    @property
+    def belief_cov(self) -> NDArray[np.float64]:
+        """``(B, 3, 3)`` belief covariances after the last step (a copy)."""
+        return self.state[:, X_COV : X_COV + 9].reshape(-1, 3, 3).copy()
+
+    def outcome(self, b: int) -> StepOutcome:
+        """Member ``b``'s last step (or reset), by name."""
+        return outcome_from_stats(self.state[b, X_STATS : X_STATS + N_STATS].tolist())
+
+    def outcomes(self, rows: Sequence[int] | slice = slice(None)) -> list[StepOutcome]:
+        """:meth:`outcome` of the members in ``rows`` (all by default)."""
+        return [outcome_from_stats(stats)
+                for stats in self.state[rows, X_STATS : X_STATS + N_STATS].tolist()]
+
+
+def outcome_from_stats(stats: list[float]) -> StepOutcome:
+    """The named outcome of a member's metrics (``state[b, X_STATS:]`` as floats)."""
+    return StepOutcome(
+        stats[S_POS_ERR], stats[S_HEAD_ERR], stats[S_ENTROPY], stats[S_UNCERTAINTY_REWARD],
+        stats[S_COLLIDED] > 0.5, stats[S_OUTCOME], stats[S_LOCALIZED] > 0.5,
+        stats[S_SUCCESS] > 0.5, stats[S_TERMINAL] > 0.5, stats[S_KIDNAPPED] > 0.5,
+        int(stats[S_N_VISIBLE]), stats[S_NIS],
+    )
 
 
 class LandmarkCore(StateViews):

@@ -12,37 +12,12 @@ from active_loc.envs.actions import action_space, check_action
 from active_loc.envs.association_core import A_ACCURACY, AssociationCore
 from active_loc.envs.config import LocalizationConfig
 from active_loc.envs.grid_core import GridCore
-from active_loc.envs.landmark_core import (
-    S_COLLIDED,
-    S_ENTROPY,
-    S_HEAD_ERR,
-    S_KIDNAPPED,
-    S_LOCALIZED,
-    S_N_VISIBLE,
-    S_NIS,
-    S_OUTCOME,
-    S_POS_ERR,
-    S_SUCCESS,
-    S_TERMINAL,
-    S_UNCERTAINTY_REWARD,
-    X_COV,
-    X_MEAN,
-    X_STATS,
-    LandmarkCore,
-)
+from active_loc.envs.landmark_core import LandmarkCore
+from active_loc.envs.outcome import RewardSettings, StepOutcome, step_info
 from active_loc.envs.particle_core import ParticleCore
 from active_loc.envs.planner_view import PlannerView
-from active_loc.envs.rewards import reward_terms, step_reward
 from active_loc.maps import OccupancyGrid
 from active_loc.scenarios import scenario_kwargs
-
-# offsets of the metrics in a row of the core's state
-_ENTROPY = X_STATS + S_ENTROPY
-_COLLIDED = X_STATS + S_COLLIDED
-_UNCERTAINTY = X_STATS + S_UNCERTAINTY_REWARD
-_TERMINAL = X_STATS + S_TERMINAL
-_OUTCOME = X_STATS + S_OUTCOME
-_KIDNAPPED = X_STATS + S_KIDNAPPED
 
 
 class ActiveLocalizationEnv(gym.Env):
@@ -166,9 +141,7 @@ class ActiveLocalizationEnv(gym.Env):
         )
         self._continuous = self.config.action_type == "continuous"
         # config values read on every step, as plain attributes
-        self._reward_name = self.config.reward
-        self._step_cost = float(self.config.step_cost)
-        self._collision_penalty = float(self.config.collision_penalty)
+        self._reward = reward_settings(self.config)
         self._terminate_when_localized = bool(self.config.terminate_when_localized)
         self._steps = 0
         self._collisions = 0
@@ -189,9 +162,8 @@ class ActiveLocalizationEnv(gym.Env):
         self._has_reset = True
         if self.render_mode is not None:
             self._true_path = [self.core.pose[0, :2].copy()]
-            self._belief_path = [self.core.state[0, X_MEAN : X_MEAN + 2].copy()]
-        row = self.core.state[0].tolist()
-        info = self._info(row)
+            self._belief_path = [self.core.belief_mean[0, :2].copy()]
+        info = self._info(self.core.outcome(0))
         if self.render_mode == "human":
             self.render()
         return self.core.obs[0].copy(), info
@@ -206,20 +178,17 @@ class ActiveLocalizationEnv(gym.Env):
         if core.step((self.np_random,)) >= 0:
             raise ValueError(f"action contains NaN or inf: {action!r}")
         self._steps += 1
-        row = core.state[0].tolist()
-        collided = row[_COLLIDED] > 0.5
-        if collided:
+        outcome = core.outcome(0)
+        if outcome.collided:
             self._collisions += 1
-        uncertainty = row[_UNCERTAINTY]
-        info = self._info(row)
-        reward = step_reward(uncertainty, collided, self._step_cost, self._collision_penalty,
-                             row[_OUTCOME])
+        info = self._info(outcome)
+        reward = self._reward.total(outcome)
         if self.render_mode is not None:
             self._true_path.append(core.pose[0, :2].copy())
-            self._belief_path.append(core.state[0, X_MEAN : X_MEAN + 2].copy())
+            self._belief_path.append(core.belief_mean[0, :2].copy())
             if self.render_mode == "human":
                 self.render()
-        terminated = self._terminate_when_localized and row[_TERMINAL] > 0.5
+        terminated = self._terminate_when_localized and outcome.terminal
         return core.obs[0].copy(), reward, terminated, False, info
 
     def render(self) -> NDArray[np.uint8] | None:
@@ -279,12 +248,10 @@ class ActiveLocalizationEnv(gym.Env):
         else:
             self.core.actions[0] = self.core.models.primitives[checked]
 
-    def _info(self, row: list[float]) -> dict[str, Any]:
-        """The info dict from the core's state row (as a list of floats)."""
-        return info_from_stats(
-            row[X_STATS:], self._collisions, self._association_accuracy(), self._reward_name,
-            self._step_cost, self._collision_penalty,
-        )
+    def _info(self, outcome: StepOutcome) -> dict[str, Any]:
+        """The info dict of the core's last step."""
+        return localization_info(outcome, self._collisions, self._association_accuracy(),
+                                 self._reward)
 
     def _association_accuracy(self) -> float:
         """This step's data-association accuracy against the true correspondences; 1.0 when
@@ -302,29 +269,24 @@ class ActiveLocalizationEnv(gym.Env):
         )
 
 
-def info_from_stats(
-    stats: list[float], collisions: int, association_accuracy: float, reward_name: str,
-    step_cost: float, collision_penalty: float,
+def reward_settings(config: LocalizationConfig) -> RewardSettings:
+    """The reward of a localization task."""
+    return RewardSettings(config.reward, float(config.step_cost),
+                          float(config.collision_penalty))
+
+
+def localization_info(
+    outcome: StepOutcome, collisions: int, association_accuracy: float, reward: RewardSettings
 ) -> dict[str, Any]:
-    """A step's info dict from a member's metrics (``state[b, X_STATS:]`` as a list of
-    floats): what the single env returns, and what the vector env hands out per sub-env
-    (:meth:`~active_loc.envs.vector_env.ActiveLocalizationVectorEnv.step_with_info_dicts`)."""
-    return {
-        "pose_error": stats[S_POS_ERR],
-        "heading_error": stats[S_HEAD_ERR],
-        "entropy": stats[S_ENTROPY],
-        "localized": stats[S_LOCALIZED] > 0.5,
-        "is_success": stats[S_SUCCESS] > 0.5,
-        "collisions": collisions,
-        "reward_terms": reward_terms(
-            reward_name, stats[S_UNCERTAINTY_REWARD], stats[S_COLLIDED] > 0.5, step_cost,
-            collision_penalty, stats[S_OUTCOME],
-        ),
-        "n_visible": int(stats[S_N_VISIBLE]),
-        "nis": stats[S_NIS],
-        "kidnapped": stats[S_KIDNAPPED] > 0.5,
-        "association_accuracy": association_accuracy,
-    }
+    """A step's info dict (:func:`~active_loc.envs.outcome.step_info` and the localization
+    envs' own keys): what the single env returns, and what the vector env hands out per
+    sub-env (``ActiveLocalizationVectorEnv.step_with_info_dicts``)."""
+    info = step_info(outcome, collisions, reward)
+    info["n_visible"] = outcome.n_visible
+    info["nis"] = outcome.nis
+    info["kidnapped"] = outcome.kidnapped
+    info["association_accuracy"] = association_accuracy
+    return info
 
 
 def build_frame(
@@ -341,7 +303,7 @@ def build_frame(
 
     lmap = core.maps[b]
     assert lmap is not None
-    row = core.state[b]
+    outcome = core.outcome(b)
     particles = weights = belief_map = None
     if isinstance(core, GridCore):
         assert core.belief is not None
@@ -351,12 +313,12 @@ def build_frame(
         particles, weights = core.belief.particles.copy(), core.belief.weights.copy()
     common = {
         "true_pose": core.pose[b].copy(),
-        "mean": row[X_MEAN : X_MEAN + 3].copy(),
-        "cov": row[X_COV : X_COV + 9].reshape(3, 3).copy(),
+        "mean": core.belief_mean[b].copy(),
+        "cov": core.belief_cov[b],
         "true_path": np.array(true_path),
         "belief_path": np.array(belief_path),
         "step": step,
-        "entropy": float(row[_ENTROPY]),
+        "entropy": outcome.entropy,
         "title": title,
         "particles": particles,
         "weights": weights,
@@ -365,7 +327,7 @@ def build_frame(
         assert isinstance(core, ParticleCore) and core.lidar is not None
         return GridFrame(
             grid=lmap, beam_angles=core.lidar.beam_angles, ranges=core.ranges[b].copy(),
-            max_range=core.lidar.max_range, kidnapped=bool(row[_KIDNAPPED] > 0.5),
+            max_range=core.lidar.max_range, kidnapped=outcome.kidnapped,
             people=None if core.crowd is None else core.crowd.discs.copy(),
             belief_map=belief_map,
             belief_cell_size=core.config.grid_cell_size if belief_map is not None else 0.0,

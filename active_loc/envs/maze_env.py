@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from active_loc.beliefs.grid import GridBelief, MotionKernel
 from active_loc.envs.actions import check_action
-from active_loc.envs.rewards import reward_terms, step_reward
+from active_loc.envs.outcome import RewardSettings, StepOutcome, step_info
 from active_loc.maps.maze import (
     HEADING_STEPS,
     TEST_SET_SEED,
@@ -367,6 +367,8 @@ class MazeEnv(gym.Env):
         shape = (5 * n * n + 2,) if self._flat else (5, n, n)
         self.observation_space = gym.spaces.Box(0.0, 1.0, shape, dtype=np.float32)
         self._reward_name = self.config.reward
+        # the maze has no step cost, collision penalty or outcome term
+        self._reward = RewardSettings(self._reward_name, 0.0, 0.0, has_outcome=False)
         self._terminate_when_localized = bool(self.config.terminate_when_localized)
         test_set = self.config.test_set
         if isinstance(test_set, MazeSet):
@@ -397,7 +399,7 @@ class MazeEnv(gym.Env):
         self.belief = GridBelief(self._free, N_HEADINGS, 1.0)
         self._observe()
         self._has_reset = True
-        info = self._info(0.0, False)
+        info = self._info(self._outcome(0.0, False))
         return self._observation(), info
 
     def step(
@@ -419,11 +421,11 @@ class MazeEnv(gym.Env):
             uncertainty = -self._entropy
         else:
             uncertainty = self._max_prob
-        info = self._info(uncertainty, collided)
-        terminated = self._terminate_when_localized and info["localized"]
+        outcome = self._outcome(uncertainty, collided)
+        info = self._info(outcome)
+        terminated = self._terminate_when_localized and outcome.localized
         truncated = not terminated and self._steps >= self.episode_length
-        # the maze has no step cost, collision penalty or outcome term
-        reward = step_reward(uncertainty, collided, 0.0, 0.0, 0.0)
+        reward = self._reward.total(outcome)
         return self._observation(), reward, terminated, truncated, info
 
     def render(self) -> NDArray[np.uint8] | None:
@@ -539,22 +541,23 @@ class MazeEnv(gym.Env):
         )
         return np.concatenate([image.reshape(-1), np.minimum(extra, 1.0)])
 
-    def _info(self, uncertainty: float, collided: bool) -> dict[str, Any]:
+    def _outcome(self, uncertainty: float, collided: bool) -> StepOutcome:
+        """The step by name: errors of the belief's mode, localized (max probability 1)."""
         x, y, h = self._pose
         mx, my, mh = self._mode
         localized = self._max_prob >= LOCALIZED_PROB
         dh = (mh - h) % N_HEADINGS
-        return {
-            "pose_error": math.hypot(mx - x, my - y),
-            "heading_error": min(dh, N_HEADINGS - dh) * (math.pi / 2),
-            "entropy": self._entropy,
-            "localized": localized,
-            "is_success": localized and self._mode == self._pose,
-            "collisions": self._collisions,
-            "reward_terms": reward_terms(self._reward_name, uncertainty, collided, 0.0, 0.0),
-            "depth": self._depth,
-            "max_prob": self._max_prob,
-        }
+        return StepOutcome(
+            math.hypot(mx - x, my - y), min(dh, N_HEADINGS - dh) * (math.pi / 2), self._entropy,
+            uncertainty, collided, 0.0, localized, localized and self._mode == self._pose,
+            localized, False, 0, math.nan,
+        )
+
+    def _info(self, outcome: StepOutcome) -> dict[str, Any]:
+        info = step_info(outcome, self._collisions, self._reward)
+        info["depth"] = self._depth
+        info["max_prob"] = self._max_prob
+        return info
 
 
 # --- drawing (numpy only) ----------------------------------------------------------------------

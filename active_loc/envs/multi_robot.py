@@ -81,8 +81,9 @@ from active_loc.envs.observations import (
     write_belief_header,
     write_landmark_slots,
 )
+from active_loc.envs.outcome import RewardSettings, StepOutcome, step_info
 from active_loc.envs.particle_core import HISTOGRAM_CELLS, mass_histogram
-from active_loc.envs.rewards import reward_terms, step_reward
+from active_loc.envs.rewards import step_reward
 from active_loc.geometry import wrap_angle
 from active_loc.maps import LandmarkMap, random_landmark_map
 from active_loc.motion import UnicycleModel, move_within_bounds
@@ -283,6 +284,9 @@ class MultiRobotLocalizationEnv(ParallelEnv):
         self._obs_spaces = {a: gymnasium.spaces.Box(-1.0, 1.0, (size,), dtype=np.float32)
                             for a in self.possible_agents}
         self._act_spaces = {a: action_space(cfg.action_type) for a in self.possible_agents}
+        # information gain per robot; the team reward sums the acting robots' (no outcome term)
+        self._reward = RewardSettings("info_gain", float(cfg.step_cost),
+                                      float(cfg.collision_penalty), has_outcome=False)
         self.np_random, self.np_random_seed = seeding.np_random(None)
         self._renderer: Any = None
         self._has_reset = False
@@ -408,8 +412,9 @@ class MultiRobotLocalizationEnv(ParallelEnv):
         entropy_before = self._entropy.copy()
         self._summarize()
         gains = entropy_before - self._entropy
+        reward = self._reward
         rewards = np.array([
-            step_reward(float(g), bool(c), cfg.step_cost, cfg.collision_penalty, 0.0)
+            step_reward(float(g), bool(c), reward.step_cost, reward.collision_penalty, 0.0)
             for g, c in zip(gains, collided, strict=True)
         ])
         if cfg.team_reward:
@@ -560,20 +565,16 @@ class MultiRobotLocalizationEnv(ParallelEnv):
         return out
 
     def _info(self, i: int, collided: NDArray, gain: float) -> dict[str, Any]:
-        cfg = self.config
-        return {
-            "pose_error": float(self._pos_err[i]),
-            "heading_error": float(self._head_err[i]),
-            "entropy": float(self._entropy[i]),
-            "localized": bool(self._localized[i]),
-            "is_success": bool(self._success[i]),
-            "collisions": int(self._collisions[i]),
-            "fused": bool(self._fused_pairs[i].any()),
-            "detected": [self.possible_agents[j] for j in np.flatnonzero(self._det_seen[i])],
-            "n_visible": int(self._visible[i].sum()),
-            "reward_terms": reward_terms("info_gain", gain, bool(collided[i]), cfg.step_cost,
-                                         cfg.collision_penalty),
-        }
+        outcome = StepOutcome(
+            float(self._pos_err[i]), float(self._head_err[i]), float(self._entropy[i]), gain,
+            bool(collided[i]), 0.0, bool(self._localized[i]), bool(self._success[i]),
+            bool(self._localized[i]), False, int(self._visible[i].sum()), math.nan,
+        )
+        info = step_info(outcome, int(self._collisions[i]), self._reward)
+        info["fused"] = bool(self._fused_pairs[i].any())
+        info["detected"] = [self.possible_agents[j] for j in np.flatnonzero(self._det_seen[i])]
+        info["n_visible"] = outcome.n_visible
+        return info
 
     # -- rendering ------------------------------------------------------------------------------
 

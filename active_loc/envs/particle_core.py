@@ -171,6 +171,7 @@ class ParticleCore(StateViews):
         self.t = 0
         self.kidnap_step = -1
         self.kidnapped = False  # the kidnapping of this episode has happened
+        self._walls = False  # the map's border blocks motion (landmark maps)
         self._bin_variance = np.diag(np.square(ENTROPY_BINS) / 12.0)
 
     # -- reset ---------------------------------------------------------------------------------
@@ -186,7 +187,8 @@ class ParticleCore(StateViews):
         row[:] = 0.0
         row[X_BOX : X_BOX + 4] = lmap.bounds
         # grids block motion by their cells; a landmark map by its border when it has walls
-        row[X_BOX + B_WALLS] = 1.0 if isinstance(lmap, OccupancyGrid) or lmap.walls else 0.0
+        self._walls = isinstance(lmap, OccupancyGrid) or lmap.walls
+        row[X_BOX + B_WALLS] = 1.0 if self._walls else 0.0
         if isinstance(lmap, LandmarkMap):
             row[X_BOX + B_COUNT] = lmap.n_landmarks
         if cfg.start == "fixed":
@@ -409,8 +411,8 @@ class ParticleCore(StateViews):
         lmap = self.maps[0]
         if not isinstance(lmap, OccupancyGrid):
             box = self.state[0, X_BOX : X_BOX + 4]
-            walls = bool(self.state[0, X_BOX + B_WALLS] > 0.5)
-            return bool(move_within_bounds(pose, v, omega, self.config.dt, noise, box, walls))
+            return bool(move_within_bounds(pose, v, omega, self.config.dt, noise, box,
+                                           self._walls))
         crowd = self.crowd
         return move_on_grid(pose, v, omega, self.config.dt, noise, lmap,
                             crowd.blocks if crowd is not None else None)

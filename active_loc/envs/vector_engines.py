@@ -45,11 +45,15 @@ from active_loc.envs.landmark_core import (
     S_SUCCESS,
     S_TERMINAL,
     S_UNCERTAINTY_REWARD,
-    X_MEAN,
     X_STATS,
     LandmarkCore,
 )
-from active_loc.envs.localization_env import ActiveLocalizationEnv, build_frame, info_from_stats
+from active_loc.envs.localization_env import (
+    ActiveLocalizationEnv,
+    build_frame,
+    localization_info,
+    reward_settings,
+)
 from active_loc.envs.rewards import step_reward
 from active_loc.parallel import set_thread_count
 
@@ -131,9 +135,10 @@ class BatchedLandmarkEngine:
         self.title = template.spec.id if template.spec is not None else "ActiveLocalization"
         self._continuous = template.config.action_type == "continuous"
         self._primitives = self.core.models.primitives
-        self._reward_name = template.config.reward
-        self._step_cost = float(template.config.step_cost)
-        self._collision_penalty = float(template.config.collision_penalty)
+        self._reward = reward_settings(template.config)
+        self._reward_name = self._reward.name
+        self._step_cost = self._reward.step_cost
+        self._collision_penalty = self._reward.collision_penalty
         self._terminate = bool(template.config.terminate_when_localized)
         self.rngs: list[np.random.Generator | None] = [None] * num_envs
         self.collisions = np.zeros(num_envs, dtype=np.int64)
@@ -159,7 +164,7 @@ class BatchedLandmarkEngine:
         self.steps[b] = 0
         if b < self._render_envs:
             self._paths[b] = ([self.core.pose[b, :2].copy()],
-                              [self.core.state[b, X_MEAN : X_MEAN + 2].copy()])
+                              [self.core.belief_mean[b, :2].copy()])
 
     def reset_members(self, rows: Sequence[int]) -> None:
         """Autoreset the members in ``rows`` (their Generators go on)."""
@@ -188,7 +193,7 @@ class BatchedLandmarkEngine:
         for b in range(min(self._render_envs, n)):
             if active[b]:
                 self._paths[b][0].append(core.pose[b, :2].copy())
-                self._paths[b][1].append(core.state[b, X_MEAN : X_MEAN + 2].copy())
+                self._paths[b][1].append(core.belief_mean[b, :2].copy())
         self.reset_members(autoreset)
         return rewards, terminated, np.zeros(n, dtype=np.bool_)
 
@@ -226,12 +231,11 @@ class BatchedLandmarkEngine:
         """The info dicts of the members in ``rows`` (None: all), as single envs return them
         (cheaper than :meth:`infos` followed by unbatching, for SB3's list of dicts)."""
         picked = slice(None) if rows is None else rows
-        stats = self.core.state[picked, X_STATS:].tolist()
         collisions = self.collisions[picked].tolist()
-        name, cost, penalty = self._reward_name, self._step_cost, self._collision_penalty
+        reward = self._reward
         return [
-            info_from_stats(row, count, 1.0, name, cost, penalty)
-            for row, count in zip(stats, collisions, strict=True)
+            localization_info(outcome, count, 1.0, reward)
+            for outcome, count in zip(self.core.outcomes(picked), collisions, strict=True)
         ]
 
     def close(self) -> None:
@@ -378,7 +382,7 @@ def info_columns(
     state: NDArray, collisions: NDArray, step_cost: float, collision_penalty: float,
     reals: NDArray, flags: NDArray, counts: NDArray,
 ) -> None:
-    """The info values of every member as :func:`info_from_stats` has them, a column per
+    """The info values of every member as :func:`localization_info` has them, a column per
     member (out): ``reals`` ``(9, n)``: pose error, heading error, entropy, NIS, association
     accuracy, then the reward terms (uncertainty, step cost, collision, outcome); ``flags``
     ``(3, n)``: localized, success, kidnapped; ``counts`` ``(2, n)``: collisions, landmarks in

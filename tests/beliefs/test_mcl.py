@@ -919,3 +919,31 @@ def test_timing_of_one_cycle():
     print(f"\nMCL K=1000, 4 landmarks: predict+update+resample {t_cycle * 1e6:.0f} us; "
           f"mean+cov+entropy {t_stats * 1e6:.0f} us")
     assert math.isfinite(t_cycle)
+
+
+def test_dense_entropy_grid_gives_the_hash_tables_entropy():
+    """The dense grid of entropy bins and the hash table bin alike: the same entropy, for
+    sets large and small, and a particle off the grid sends the belief to the hash table."""
+    from active_loc.beliefs.particle_stats import binned_entropy, dense_binned_entropy
+
+    rng = np.random.default_rng(4)
+    box = FreeSpace.from_box(-3.0, 2.0, 9.0, 11.0)
+    b = MCLBelief(box, UnicycleModel(0.1, 0.01 * np.eye(3)), 20000, kld=True, min_particles=1)
+    dx, dy, dth = b.entropy_bins
+    origin, acc, touched = b._entropy_grid()
+    for k in (1, 7, 600, 20000):
+        parts = np.column_stack([rng.uniform(-3, 9, k), rng.uniform(2, 11, k),
+                                 rng.uniform(-np.pi, np.pi, k)])
+        w = rng.random(k)
+        w[rng.random(k) < 0.2] = 0.0
+        w = w / w.sum() if w.sum() > 0 else np.full(k, 1.0 / k)
+        dense = dense_binned_entropy(parts, w, dx, dy, dth, origin, acc, touched)
+        assert dense == pytest.approx(binned_entropy(parts, w, dx, dy, dth), abs=1e-12)
+        assert not acc.any()  # left as zeros for the next call
+        b.set_particles(parts)
+        assert b.entropy() == pytest.approx(histogram_entropy(parts, np.log(np.full(k, 1 / k)),
+                                                              dx, dy, dth), abs=1e-12)
+    parts = np.array([[0.0, 3.0, 0.0], [50.0, 3.0, 0.0]])
+    w = np.array([0.5, 0.5])
+    assert np.isnan(dense_binned_entropy(parts, w, dx, dy, dth, origin, acc, touched))
+    assert not acc.any()

@@ -14,8 +14,10 @@ over minutes (about 25% on a shared 2-core host) lands on both. Reported:
 * ``single``: one ``gymnasium.make(id)`` env, ``--steps`` random actions, the episodes reset
   inside the timed loop (the first with seed 0);
 * ``native n``: ``gymnasium.make_vec(id, n, vectorization_mode="vector_entry_point")``,
-  NEXT_STEP autoreset, env-steps per second (n per call), and for Maze-v0 the same against
-  gymnasium's ``SyncVectorEnv``;
+  NEXT_STEP autoreset, env-steps per second (n per call), and (head only) gymnasium's
+  ``SyncVectorEnv`` on the same seeds and actions: n single envs stepped in turn, the single
+  env's rate on the vector env's workload (the first steps of n episodes at once, which
+  differs from one env's run of consecutive episodes);
 * ``reset``: milliseconds per ``reset()`` of a single env, with a new map every episode and
   (head only, ``map_pool``) with a pool of maps;
 * ``split``: where a head step's time goes (:func:`step_split`);
@@ -361,8 +363,7 @@ def main() -> None:
                 calls = max(2, (args.maze_calls if maze else args.calls) * 16 // n)
                 request = {"kind": "vector", "env_id": env_id, "n": n, "calls": calls,
                            "repeats": args.repeats, "kwargs": {}}
-                compare(env_id, f"native n={n}", request,
-                        {**request, "sync": True} if maze else None)
+                compare(env_id, f"native n={n}", request, {**request, "sync": True})
         if "reset" in parts and not maze:
             request = {"kind": "reset", "env_id": env_id, "resets": args.resets,
                        "repeats": args.repeats, "kwargs": {}}

@@ -22,6 +22,7 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -n 2 -q
 
 bench: $(STAMP)
+	$(BIN)/python benchmarks/bench_multimodal.py --json reports/bench_multimodal.json
 	$(BIN)/python benchmarks/bench_steps.py
 	$(BIN)/python benchmarks/bench_maze.py
 	$(BIN)/python benchmarks/bench_mcl.py

@@ -337,7 +337,8 @@ def main() -> None:
     def report(row: dict) -> None:
         results.append(row)
         print(json.dumps(row), flush=True)
-        if args.json:
+        if args.json:  # written as the rows come: an interrupted run keeps what it measured
+            Path(args.json).parent.mkdir(parents=True, exist_ok=True)
             Path(args.json).write_text(json.dumps(results, indent=1))
 
     def compare(env_id: str, label: str, request: dict, head_only: dict | None = None) -> None:

@@ -7,10 +7,11 @@ as ``exp(-1e300)`` neither underflow to a division by zero nor give NaN; a set w
 all ``-inf`` is treated as uniform by the moment kernels (the filter re-initializes such a set
 before anyone asks, but a statistic must still never be NaN).
 
-* :func:`logsumexp`, :func:`normalize_log_weights`, :func:`effective_sample_size`
-  (``1 / sum w^2`` of the normalized weights);
-* :func:`weighted_mean` (heading by ``atan2`` of the weighted sines and cosines, the circular
-  mean) and :func:`weighted_covariance` (heading residuals wrapped about that mean);
+* :func:`logsumexp`, :func:`normalize_log_weights`, :func:`normalized_weights`;
+* :func:`summarize_particles`: what a step reads of a set in one blocked pass: the normalized
+  weights, the mean (heading by ``atan2`` of the weighted sines and cosines, the circular mean),
+  the covariance (heading residuals wrapped about that mean), the entropy and the effective
+  sample size ``1 / sum w^2``;
 * :func:`histogram_entropy`: the belief entropy of :mod:`active_loc.beliefs.entropy` for a
   particle set, ``H = -sum_b p_b log p_b + log(dx dy dtheta)`` over the occupied cells of a pose
   grid, in nats (so it is comparable with the Gaussian differential entropy);
@@ -18,7 +19,8 @@ before anyone asks, but a statistic must still never be NaN).
   the Wilson-Hilferty approximation of the chi-square quantile as in AMCL's
   ``pf_resample_limit``;
 * :func:`assign_bins`: compact ids of the occupied pose bins through a small open-addressing
-  hash table (the entropy and KLD sampling both count bins, and neither needs a dense grid).
+  hash table (the entropy and KLD sampling both count bins); :func:`dense_binned_entropy`
+  counts them on a dense grid over the map instead, when one fits in memory.
 
 Pose bins are ``(floor(x / dx), floor(y / dy), floor((theta + pi) / dtheta))``: anchored at the
 map-frame origin and at heading ``-pi``, so that ``dtheta = 2 pi / n`` tiles the circle exactly.
@@ -81,81 +83,6 @@ def normalized_weights(log_w: NDArray, out: NDArray) -> None:
         return
     for i in range(k):
         out[i] = np.exp(log_w[i] - lse)
-
-
-@numba.njit(cache=True, nogil=True)
-def effective_sample_size(log_w: NDArray) -> float:
-    """Kish's effective sample size ``1 / sum w_k^2`` of the normalized weights; 0 when every
-    weight is zero, ``K`` when they are uniform, 1 when one particle holds all the mass."""
-    lse = logsumexp(log_w)
-    if lse == -np.inf:
-        return 0.0
-    s = 0.0
-    for v in log_w:
-        s += np.exp(2.0 * (v - lse))
-    return 1.0 / s
-
-
-@numba.njit(cache=True, nogil=True)
-def weighted_mean(particles: NDArray, log_w: NDArray, out: NDArray) -> None:
-    """Weighted mean pose ``(3,)`` into ``out``: arithmetic in x and y, circular in theta
-    (``atan2(sum w sin, sum w cos)``, so a cloud across the +-pi seam averages to ~pi, not 0)."""
-    k = particles.shape[0]
-    w = np.empty(k)
-    normalized_weights(log_w, w)
-    mx = 0.0
-    my = 0.0
-    ms = 0.0
-    mc = 0.0
-    for i in range(k):
-        if w[i] == 0.0:
-            continue
-        mx += w[i] * particles[i, 0]
-        my += w[i] * particles[i, 1]
-        ms += w[i] * np.sin(particles[i, 2])
-        mc += w[i] * np.cos(particles[i, 2])
-    out[0] = mx
-    out[1] = my
-    th = np.arctan2(ms, mc)
-    out[2] = th if th < np.pi else -np.pi  # atan2 may return +pi; headings live in [-pi, pi)
-
-
-@numba.njit(cache=True, nogil=True)
-def weighted_covariance(particles: NDArray, log_w: NDArray, mean: NDArray, out: NDArray) -> None:
-    """Weighted covariance ``(3, 3)`` about ``mean`` ``(3,)`` into ``out``.
-
-    The heading residual is wrapped to [-pi, pi) about the circular mean, so a cloud across the
-    seam has a small heading variance. This is the plug-in (biased) second moment
-    ``sum_k w_k r_k r_k^T`` of the normalized weights, the usual particle-belief covariance; it
-    is singular when every particle sits at one pose.
-    """
-    k = particles.shape[0]
-    w = np.empty(k)
-    normalized_weights(log_w, w)
-    c00 = c01 = c02 = c11 = c12 = c22 = 0.0
-    for i in range(k):
-        if w[i] == 0.0:
-            continue
-        r0 = particles[i, 0] - mean[0]
-        r1 = particles[i, 1] - mean[1]
-        r2 = particles[i, 2] - mean[2]
-        if not -np.pi <= r2 < np.pi:
-            r2 = (r2 + np.pi) % (2.0 * np.pi) - np.pi
-        c00 += w[i] * r0 * r0
-        c01 += w[i] * r0 * r1
-        c02 += w[i] * r0 * r2
-        c11 += w[i] * r1 * r1
-        c12 += w[i] * r1 * r2
-        c22 += w[i] * r2 * r2
-    out[0, 0] = c00
-    out[0, 1] = c01
-    out[1, 0] = c01
-    out[0, 2] = c02
-    out[2, 0] = c02
-    out[1, 1] = c11
-    out[1, 2] = c12
-    out[2, 1] = c12
-    out[2, 2] = c22
 
 
 # --- a hash table of integer pose bins ------------------------------------------------------------
@@ -342,8 +269,10 @@ def summarize_particles(
     passes of exp, sin and cos instead of one per statistic.
 
     Writes the normalized weights ``(K,)``, the mean ``(3,)`` (circular in theta) and the
-    covariance ``(3, 3)`` (heading residuals wrapped) as :func:`weighted_mean` and
-    :func:`weighted_covariance` define them; returns ``(entropy, ess)``: the histogram entropy
+    covariance ``(3, 3)`` (heading residuals wrapped) as the plug-in estimates define them
+    (arithmetic in x and y, ``atan2(sum w sin, sum w cos)`` in theta, so that a cloud across
+    the +-pi seam averages to about pi, not 0; ``sum_k w_k r_k r_k^T``, singular when every
+    particle sits at one pose); returns ``(entropy, ess)``: the histogram entropy
     on the pose grid ``bins`` ``(dx m, dy m, dtheta rad)`` (nats, as
     :func:`histogram_entropy`) and Kish's effective sample size. ``parallel`` runs the block
     sums on numba's threads (the same numbers). Every weight zero: uniform weights.

@@ -33,13 +33,12 @@ from active_loc.beliefs.mcl import (
     systematic_resample,
 )
 from active_loc.beliefs.particle_stats import (
-    effective_sample_size,
+    ENTROPY_BINS,
     histogram_entropy,
     kld_limit,
     logsumexp,
     normalize_log_weights,
-    weighted_covariance,
-    weighted_mean,
+    summarize_particles,
 )
 from active_loc.motion import UnicycleModel
 from active_loc.sensors import (
@@ -94,6 +93,20 @@ def test_logsumexp_and_normalization_match_scipy():
     assert np.all(lw == -np.inf)  # left alone: the caller recovers
 
 
+def summarize(parts, log_w, parallel=False):
+    """``(weights, mean, cov, entropy, ess)`` of summarize_particles."""
+    parts = np.ascontiguousarray(parts, dtype=np.float64)
+    k = parts.shape[0]
+    w, mean, cov = np.empty(k), np.empty(3), np.empty((3, 3))
+    entropy, ess = summarize_particles(parts, np.asarray(log_w, dtype=np.float64),
+                                       np.array(ENTROPY_BINS), parallel, w, mean, cov)
+    return w, mean, cov, entropy, ess
+
+
+def effective_sample_size(log_w):
+    return summarize(np.zeros((len(log_w), 3)), log_w)[4]
+
+
 def test_effective_sample_size_formula():
     rng = np.random.default_rng(1)
     for _ in range(5):
@@ -104,7 +117,18 @@ def test_effective_sample_size_formula():
     one = np.full(10, -np.inf)
     one[3] = -5.0
     assert effective_sample_size(one) == pytest.approx(1.0)
-    assert effective_sample_size(np.full(10, -np.inf)) == 0.0
+    # every weight zero: read as uniform (the filter re-initializes before it gets here)
+    assert effective_sample_size(np.full(10, -np.inf)) == pytest.approx(10.0)
+
+
+def test_the_summary_is_the_same_on_one_thread_and_on_blocks_in_parallel():
+    rng = np.random.default_rng(2)
+    k = 10_000  # several blocks
+    parts = np.column_stack([rng.uniform(0, 9, k), rng.uniform(0, 9, k),
+                             rng.uniform(-np.pi, np.pi, k)])
+    lw = rng.normal(size=k)
+    for a, b in zip(summarize(parts, lw, False), summarize(parts, lw, True), strict=True):
+        np.testing.assert_array_equal(a, b)
 
 
 def test_add_log_likelihood_returns_the_evidence():
@@ -389,13 +413,12 @@ def test_particles_leaving_the_box_get_minus_inf():
 
 def test_circular_mean_across_the_seam():
     parts = np.array([[0.0, 0.0, np.pi - 0.1], [2.0, 0.0, -np.pi + 0.1]])
-    out = np.empty(3)
-    weighted_mean(parts, np.zeros(2), out)
+    out = summarize(parts, np.zeros(2))[1]
     assert out[0] == pytest.approx(1.0)
     assert abs(angle_diff(out[2], np.pi)) < 1e-12
     assert -np.pi <= out[2] < np.pi
     lw = np.log(np.array([0.75, 0.25]))
-    weighted_mean(parts, lw, out)
+    out = summarize(parts, lw)[1]
     expected = np.arctan2(0.75 * np.sin(np.pi - 0.1) + 0.25 * np.sin(-np.pi + 0.1),
                           0.75 * np.cos(np.pi - 0.1) + 0.25 * np.cos(-np.pi + 0.1))
     assert out[2] == pytest.approx(expected)
@@ -409,8 +432,7 @@ def test_covariance_matches_numpy_with_wrapped_residuals():
                              wrap(np.pi + rng.normal(0, 0.3, k))])
     lw = rng.normal(size=k)
     w = numpy_weights(lw)
-    mean = np.empty(3)
-    weighted_mean(parts, lw, mean)
+    mean = summarize(parts, lw)[1]
     c_mean = np.arctan2(np.sum(w * np.sin(parts[:, 2])), np.sum(w * np.cos(parts[:, 2])))
     assert abs(angle_diff(mean[2], c_mean)) < 1e-12
     np.testing.assert_allclose(mean[:2], w @ parts[:, :2], rtol=1e-12)
@@ -421,8 +443,7 @@ def test_covariance_matches_numpy_with_wrapped_residuals():
     expected = (res * w[:, None]).T @ res
     np.testing.assert_allclose(expected[:2, :2], np.cov(res[:, :2].T, aweights=w, bias=True),
                                rtol=1e-10)
-    out = np.empty((3, 3))
-    weighted_covariance(parts, lw, mean, out)
+    out = summarize(parts, lw)[2]
     np.testing.assert_allclose(out, expected, rtol=1e-10, atol=1e-14)
     assert out[2, 2] < 0.15  # ~0.09: not the huge variance of unwrapped residuals
     # the belief methods are the same kernels

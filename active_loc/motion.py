@@ -207,6 +207,7 @@ def move_on_grid(
     return False
 
 
+@numba.njit(cache=True, nogil=True)
 def move_on_cells(
     free: NDArray[np.bool_], x: int, y: int, dx: int, dy: int
 ) -> tuple[int, int, bool]:

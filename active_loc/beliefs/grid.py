@@ -88,6 +88,59 @@ def _stays(free: NDArray, b: int, x: int, y: int, dx: int, dy: int) -> bool:
 
 
 @numba.njit(cache=True, nogil=True)
+def predict_member(
+    prob: NDArray,
+    free: NDArray,
+    b: int,
+    shift: NDArray,
+    turn: int,
+    offsets: NDArray,
+    weights: NDArray,
+    out: NDArray,
+) -> None:
+    """Map-aware prediction of member ``b``: ``out[b] = sum_x p(x' | u, x) prob[b](x)``.
+
+    Args:
+        prob: ``(B, X, Y, H)`` belief before the motion.
+        free: ``(B, X, Y)`` bool, True = free cell.
+        b: the member.
+        shift: ``(H, 2)`` int64 commanded translation (cells) per heading bin.
+        turn: commanded turn (heading bins).
+        offsets: ``(K, 3)`` int64 noise outcomes ``(dx, dy, dh)`` added to the command.
+        weights: ``(K,)`` probabilities of the outcomes.
+        out: ``(B, X, Y, H)``: member ``b`` is overwritten with the predicted belief.
+    """
+    _, nx, ny, nh = prob.shape
+    nk = offsets.shape[0]
+    # per heading and outcome: the translation and the new heading bin
+    move_x = np.empty((nh, nk), dtype=np.int64)
+    move_y = np.empty((nh, nk), dtype=np.int64)
+    new_h = np.empty((nh, nk), dtype=np.int64)
+    out[b] = 0.0
+    for h in range(nh):
+        for k in range(nk):
+            move_x[h, k] = shift[h, 0] + offsets[k, 0]
+            move_y[h, k] = shift[h, 1] + offsets[k, 1]
+            new_h[h, k] = (h + turn + offsets[k, 2]) % nh
+    for x in range(nx):
+        for y in range(ny):
+            if not free[b, x, y]:
+                continue
+            for h in range(nh):
+                p = prob[b, x, y, h]
+                if p == 0.0:
+                    continue
+                for k in range(nk):
+                    dx = move_x[h, k]
+                    dy = move_y[h, k]
+                    th = new_h[h, k]
+                    if _stays(free, b, x, y, dx, dy):
+                        out[b, x, y, th] += p * weights[k]
+                    else:
+                        out[b, x + dx, y + dy, th] += p * weights[k]
+
+
+@numba.njit(cache=True, nogil=True)
 def predict_kernel(
     prob: NDArray,
     free: NDArray,
@@ -97,48 +150,10 @@ def predict_kernel(
     weights: NDArray,
     out: NDArray,
 ) -> None:
-    """Map-aware prediction: ``out = sum_x p(x' | u, x) prob(x)``.
-
-    Args:
-        prob: ``(B, X, Y, H)`` belief before the motion.
-        free: ``(B, X, Y)`` bool, True = free cell.
-        shift: ``(B, H, 2)`` int64 commanded translation (cells) per heading bin.
-        turn: ``(B,)`` int64 commanded turn (heading bins).
-        offsets: ``(K, 3)`` int64 noise outcomes ``(dx, dy, dh)`` added to the command.
-        weights: ``(K,)`` probabilities of the outcomes.
-        out: ``(B, X, Y, H)`` predicted belief (overwritten).
-    """
-    nb, nx, ny, nh = prob.shape
-    nk = offsets.shape[0]
-    # per member, heading and outcome: the translation and the new heading bin
-    move_x = np.empty((nh, nk), dtype=np.int64)
-    move_y = np.empty((nh, nk), dtype=np.int64)
-    new_h = np.empty((nh, nk), dtype=np.int64)
-    out[:] = 0.0
-    for b in range(nb):
-        for h in range(nh):
-            for k in range(nk):
-                move_x[h, k] = shift[b, h, 0] + offsets[k, 0]
-                move_y[h, k] = shift[b, h, 1] + offsets[k, 1]
-                new_h[h, k] = (h + turn[b] + offsets[k, 2]) % nh
-        for x in range(nx):
-            for y in range(ny):
-                if not free[b, x, y]:
-                    continue
-                for h in range(nh):
-                    p = prob[b, x, y, h]
-                    if p == 0.0:
-                        continue
-                    for k in range(nk):
-                        dx = move_x[h, k]
-                        dy = move_y[h, k]
-                        th = new_h[h, k]
-                        tx = x + dx
-                        ty = y + dy
-                        if _stays(free, b, x, y, dx, dy):
-                            out[b, x, y, th] += p * weights[k]
-                        else:
-                            out[b, tx, ty, th] += p * weights[k]
+    """:func:`predict_member` of every member: ``shift`` ``(B, H, 2)`` and ``turn`` ``(B,)``
+    int64 per member; ``out`` ``(B, X, Y, H)`` is overwritten."""
+    for b in range(prob.shape[0]):
+        predict_member(prob, free, b, shift[b], turn[b], offsets, weights, out)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -365,13 +380,46 @@ def uniform_kernel(prob: NDArray, free: NDArray, b: int) -> None:
 
 
 @numba.njit(cache=True, nogil=True)
-def update_kernel(prob: NDArray, likelihood: NDArray, free: NDArray, evidence: NDArray) -> bool:
-    """Correction in place: ``prob *= likelihood``, normalized per member.
+def update_member(
+    prob: NDArray, likelihood: NDArray, top: float, free: NDArray, b: int
+) -> float:
+    """Correction of member ``b`` in place: ``prob[b] *= likelihood[b]``, normalized.
 
-    The product is formed with the likelihood divided by its largest value, so it can neither
-    overflow nor depend on the likelihood's scale; ``evidence[b]`` receives the unscaled
-    ``sum_x p(z | x) bel_bar(x)``. A member whose mass vanishes (evidence 0) is re-initialized
-    uniform over its free poses.
+    The product is formed with the likelihood divided by its largest value ``top`` (>= 0,
+    the caller's), so it can neither overflow nor depend on the likelihood's scale. A member
+    whose mass vanishes is re-initialized uniform over its free poses.
+
+    Returns:
+        The unscaled evidence ``sum_x p(z | x) bel_bar(x)``; 0 where the member was
+        re-initialized.
+    """
+    _, nx, ny, nh = prob.shape
+    total = 0.0
+    if top > 0.0:
+        scale = 1.0 / top
+        for x in range(nx):
+            for y in range(ny):
+                for h in range(nh):
+                    p = prob[b, x, y, h]
+                    if p != 0.0:
+                        p *= likelihood[b, x, y, h] * scale
+                        prob[b, x, y, h] = p
+                        total += p
+    if total > 0.0:
+        # a division, not a product with 1 / total: a single pose left gets exactly 1.0
+        for x in range(nx):
+            for y in range(ny):
+                for h in range(nh):
+                    prob[b, x, y, h] /= total
+        return total * top
+    uniform_kernel(prob, free, b)
+    return 0.0
+
+
+@numba.njit(cache=True, nogil=True)
+def update_kernel(prob: NDArray, likelihood: NDArray, free: NDArray, evidence: NDArray) -> bool:
+    """:func:`update_member` of every member with ``likelihood`` ``(B, X, Y, H)``;
+    ``evidence[b]`` receives its evidence.
 
     Returns:
         False (and ``prob`` untouched) if a likelihood is negative, NaN or infinite.
@@ -390,28 +438,7 @@ def update_kernel(prob: NDArray, likelihood: NDArray, free: NDArray, evidence: N
                         top = v
         tops[b] = top
     for b in range(nb):
-        top = tops[b]
-        total = 0.0
-        if top > 0.0:
-            scale = 1.0 / top
-            for x in range(nx):
-                for y in range(ny):
-                    for h in range(nh):
-                        p = prob[b, x, y, h]
-                        if p != 0.0:
-                            p *= likelihood[b, x, y, h] * scale
-                            prob[b, x, y, h] = p
-                            total += p
-        if total > 0.0:
-            # a division, not a product with 1 / total: a single pose left gets exactly 1.0
-            for x in range(nx):
-                for y in range(ny):
-                    for h in range(nh):
-                        prob[b, x, y, h] /= total
-            evidence[b] = total * top
-        else:
-            uniform_kernel(prob, free, b)
-            evidence[b] = 0.0
+        evidence[b] = update_member(prob, likelihood, tops[b], free, b)
     return True
 
 
@@ -450,27 +477,34 @@ def mode_kernel(prob: NDArray, index: NDArray, top: NDArray) -> None:
 
 
 @numba.njit(cache=True, nogil=True)
+def stats_member(prob: NDArray, b: int, log_cell_volume: float, index: NDArray) -> tuple:
+    """Entropy (nats, :func:`entropy_kernel`) and largest probability of member ``b`` in
+    one pass; its most probable pose goes to ``index`` ``(3,)`` (:func:`mode_kernel`)."""
+    _, nx, ny, nh = prob.shape
+    s = 0.0
+    best = -1.0
+    for x in range(nx):
+        for y in range(ny):
+            for h in range(nh):
+                p = prob[b, x, y, h]
+                if p > 0.0:
+                    s -= p * math.log(p)
+                if p > best:
+                    best = p
+                    index[0] = x
+                    index[1] = y
+                    index[2] = h
+    return s + log_cell_volume, best
+
+
+@numba.njit(cache=True, nogil=True)
 def stats_kernel(
     prob: NDArray, log_cell_volume: float, entropy: NDArray, index: NDArray, top: NDArray
 ) -> None:
-    """:func:`entropy_kernel` and :func:`mode_kernel` in one pass."""
-    nb, nx, ny, nh = prob.shape
-    for b in range(nb):
-        s = 0.0
-        best = -1.0
-        for x in range(nx):
-            for y in range(ny):
-                for h in range(nh):
-                    p = prob[b, x, y, h]
-                    if p > 0.0:
-                        s -= p * math.log(p)
-                    if p > best:
-                        best = p
-                        index[b, 0] = x
-                        index[b, 1] = y
-                        index[b, 2] = h
-        entropy[b] = s + log_cell_volume
-        top[b] = best
+    """:func:`stats_member` of every member: ``entropy`` and ``top`` ``(B,)``, ``index``
+    ``(B, 3)`` (out)."""
+    for b in range(prob.shape[0]):
+        entropy[b], top[b] = stats_member(prob, b, log_cell_volume, index[b])
 
 
 # --- motion noise ----------------------------------------------------------------------------
@@ -697,6 +731,26 @@ class GridBelief:
         for b in indices:
             uniform_kernel(self._prob, self._free, int(b))
         self._evidence.fill(np.nan)
+
+    def set_member_free(self, b: int, free: NDArray[np.bool_]) -> None:
+        """Give member ``b`` a new map, ``free`` ``(X, Y)`` bool with at least one free cell
+        (the caller checks), and make it uniform over its free poses. The masks are replaced,
+        not written: copies made before keep theirs."""
+        masks = self._free.copy()
+        masks[b] = free
+        masks.setflags(write=False)
+        self._free = masks
+        self.__dict__.pop("_clearance_cache", None)
+        uniform_kernel(self._prob, self._free, b)
+
+    def state_arrays(
+        self,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64]]:
+        """The writable state for a kernel that steps these beliefs together with its own
+        state in one call (the maze core): ``prob`` and a scratch array ``(B, X, Y, H)``, the
+        free masks ``(B, X, Y)`` (read-only) and the evidence ``(B,)``. The kernel keeps every
+        member normalized, as :func:`predict_member` and :func:`update_member` do."""
+        return self._prob, self._scratch, self._free, self._evidence
 
     def set_prob(self, prob: ArrayLike) -> None:
         """Replace the state with ``prob`` ``(B, X, Y, H)`` (non-negative, finite, zero on
@@ -1049,6 +1103,16 @@ class GridBelief:
         out._prob = self._prob.copy()
         out._scratch = np.empty_like(self._scratch)
         out._evidence = self._evidence.copy()
+        return out
+
+    def member(self, b: int) -> GridBelief:
+        """A deep copy of member ``b`` alone (B = 1)."""
+        out = _copy.copy(self)
+        out._prob = self._prob[b : b + 1].copy()
+        out._scratch = np.empty_like(out._prob)
+        out._evidence = self._evidence[b : b + 1].copy()
+        out._free = self._free[b : b + 1]  # a view of an array never written again
+        out.__dict__.pop("_clearance_cache", None)
         return out
 
     def __deepcopy__(self, memo: dict) -> GridBelief:

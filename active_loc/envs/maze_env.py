@@ -4,7 +4,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -12,43 +11,39 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from active_loc.beliefs.grid import GridBelief, MotionKernel
+from active_loc.beliefs.grid import GridBelief
 from active_loc.envs.actions import check_action
-from active_loc.envs.outcome import RewardSettings, StepOutcome, step_info
+from active_loc.envs.maze_core import (
+    LOCALIZED_PROB,
+    MOVE_FORWARD,
+    N_HEADINGS,
+    SHIFTS,
+    TURN_LEFT,
+    TURN_RIGHT,
+    TURNS,
+    MazeCore,
+    maze_move,
+)
+from active_loc.envs.outcome import RewardSettings, step_info
 from active_loc.maps.maze import (
-    HEADING_STEPS,
     TEST_SET_SEED,
     MazeSet,
     maze_test_set,
-    maze_to_grid,
     random_maze,
     random_start,
 )
 from active_loc.maps.occupancy import OccupancyGrid
-from active_loc.motion import move_on_cells
 from active_loc.sensors.depth import DepthSensor
 
-TURN_LEFT, TURN_RIGHT, MOVE_FORWARD = 0, 1, 2
+__all__ = ["LOCALIZED_PROB", "MOVE_FORWARD", "TURN_LEFT", "TURN_RIGHT", "MazeConfig", "MazeEnv",
+           "MazeMotion", "MazePlannerView", "render_maze"]
+
 ACTION_NAMES = ("turn_left", "turn_right", "move_forward")
-N_HEADINGS = 4
 SIZES = (7, 15, 21)
 #: the paper's episode lengths per maze size; the first is the default
 PAPER_EPISODE_LENGTHS = {7: (15, 30), 15: (20, 40), 21: (30, 60)}
 OBSERVATIONS = ("belief", "flat")
 REWARDS = ("info_gain", "neg_entropy", "max_prob")
-#: the belief counts as localized when its largest probability is at least this (the exact
-#: filter gives exactly 1.0; the margin only absorbs rounding)
-LOCALIZED_PROB = 1.0 - 1e-9
-
-# per action: the commanded shift (1, H, 2) for every heading and the turn (1,), batch of one
-_SHIFTS = np.zeros((3, 1, N_HEADINGS, 2), dtype=np.int64)
-_SHIFTS[MOVE_FORWARD, 0] = HEADING_STEPS
-_TURNS = np.array([[1], [-1], [0]], dtype=np.int64)
-_SHIFTS.setflags(write=False)
-_TURNS.setflags(write=False)
-_NO_NOISE = MotionKernel.deterministic()
-
-
 @dataclass(frozen=True)
 class MazeConfig:
     """Configuration of ``ActiveLoc/Maze-v0`` (the keyword arguments of :class:`MazeEnv`)."""
@@ -132,14 +127,14 @@ class MazeMotion:
     def command(self, action: int) -> tuple[NDArray[np.int64], int]:
         """The per-heading shift ``(4, 2)`` (cells) and the turn (bins) of ``action``."""
         a = _action_index(action)
-        return _SHIFTS[a, 0], int(_TURNS[a, 0])
+        return SHIFTS[a], int(TURNS[a])
 
     def predict(self, belief: GridBelief, action: int) -> None:
         """Prediction step of ``belief`` (any batch size) for ``action``, in place."""
         a = _action_index(action)
         b = belief.batch_size
-        shift = np.ascontiguousarray(np.broadcast_to(_SHIFTS[a], (b, N_HEADINGS, 2)))
-        turn = np.full(b, _TURNS[a, 0], dtype=np.int64)
+        shift = np.ascontiguousarray(np.broadcast_to(SHIFTS[a], (b, N_HEADINGS, 2)))
+        turn = np.full(b, TURNS[a], dtype=np.int64)
         belief.predict(shift, turn)
 
     def move(
@@ -147,24 +142,9 @@ class MazeMotion:
     ) -> tuple[tuple[int, int, int], bool]:
         """The next pose ``(ix, iy, h)`` on the free mask ``(X, Y)`` and whether a forward move
         was blocked."""
-        return _move(free, pose, _action_index(action))
-
-
-_STEPS = tuple((int(dx), int(dy)) for dx, dy in HEADING_STEPS)
-
-
-def _move(
-    free: NDArray[np.bool_], pose: tuple[int, int, int], a: int
-) -> tuple[tuple[int, int, int], bool]:
-    """:meth:`MazeMotion.move` for a valid action index ``a``."""
-    x, y, h = pose
-    if a == TURN_LEFT:
-        return (x, y, (h + 1) % N_HEADINGS), False
-    if a == TURN_RIGHT:
-        return (x, y, (h - 1) % N_HEADINGS), False
-    dx, dy = _STEPS[h]
-    x, y, blocked = move_on_cells(free, x, y, dx, dy)
-    return (x, y, h), blocked
+        a = _action_index(action)
+        x, y, h, blocked = maze_move(free, pose[0], pose[1], pose[2], SHIFTS[a], int(TURNS[a]))
+        return (int(x), int(y), int(h)), bool(blocked)
 
 
 _ACTION_SPACE = gym.spaces.Discrete(3)
@@ -383,6 +363,22 @@ class MazeEnv(gym.Env):
         self._next_index = 0
         self._maze_index: int | None = None
         self._has_reset = False
+        self.attach(self.new_core(1), 0)
+
+    def new_core(self, batch_size: int) -> MazeCore:
+        """A :class:`MazeCore` of ``batch_size`` members with this env's settings."""
+        return MazeCore(
+            self.size, batch_size, flat=self._flat, reward=self._reward_name,
+            terminate_when_localized=self._terminate_when_localized,
+            episode_length=self.episode_length,
+        )  # fmt: skip
+
+    def attach(self, core: MazeCore, member: int) -> None:
+        """Run this env's episodes as member ``member`` of ``core`` (the native vector env
+        steps all its sub-envs in one core; this env still picks their mazes and starts)."""
+        self._core = core
+        self._member = member
+        self._has_reset = False
 
     # -- gymnasium API ------------------------------------------------------------------------
 
@@ -391,42 +387,21 @@ class MazeEnv(gym.Env):
     ) -> tuple[NDArray[np.float32], dict[str, Any]]:
         super().reset(seed=seed)
         walls, start, index = self._episode_maze(options)
-        self._set_maze(walls)
+        self._core.reset_member(self._member, walls, start)
         self._maze_index = index
-        self._pose = (int(start[0]), int(start[1]), int(start[2]))
-        self._steps = 0
-        self._collisions = 0
-        self.belief = GridBelief(self._free, N_HEADINGS, 1.0)
-        self._observe()
         self._has_reset = True
-        info = self._info(self._outcome(0.0, False))
-        return self._observation(), info
+        return self._observation(), self.last_info()
 
     def step(
         self, action: Any
     ) -> tuple[NDArray[np.float32], float, bool, bool, dict[str, Any]]:
         if not self._has_reset:
             raise RuntimeError("call reset() before step()")
-        a = _action_index(action)
-        prev_entropy = self._entropy
-        self._pose, collided = _move(self._free, self._pose, a)
-        self._steps += 1
-        if collided:
-            self._collisions += 1
-        self.belief.predict_arrays(_SHIFTS[a], _TURNS[a], _NO_NOISE.offsets, _NO_NOISE.weights)
-        self._observe()
-        if self._reward_name == "info_gain":
-            uncertainty = prev_entropy - self._entropy
-        elif self._reward_name == "neg_entropy":
-            uncertainty = -self._entropy
-        else:
-            uncertainty = self._max_prob
-        outcome = self._outcome(uncertainty, collided)
-        info = self._info(outcome)
-        terminated = self._terminate_when_localized and outcome.localized
-        truncated = not terminated and self._steps >= self.episode_length
-        reward = self._reward.total(outcome)
-        return self._observation(), reward, terminated, truncated, info
+        b = self._member
+        self._core.step_member(b, _action_index(action))
+        s = self._core.state[b]
+        return (self._observation(), float(s["reward"]), bool(s["terminated"]),
+                bool(s["truncated"]), self.last_info())
 
     def render(self) -> NDArray[np.uint8] | None:
         if self.render_mode is None:
@@ -434,7 +409,8 @@ class MazeEnv(gym.Env):
             return None
         if not self._has_reset:
             raise RuntimeError("call reset() before render()")
-        return render_maze(self._walls, self.belief.prob[0], self._pose)
+        b = self._member
+        return render_maze(self.walls, self._core.belief.prob[b], self._core.pose(b))
 
     # -- planners -----------------------------------------------------------------------------
 
@@ -443,39 +419,52 @@ class MazeEnv(gym.Env):
         never the true pose."""
         if not self._has_reset:
             raise RuntimeError("call reset() before planner_view()")
+        b = self._member
         return MazePlannerView(
-            belief=self.belief.copy(),
+            belief=self._core.belief.member(b),
             map=self.grid,
-            walls=self._walls,
+            walls=self.walls,
             motion=self.motion,
-            sensor=self._sensor,
+            sensor=self._core.sensor(b),
             action_space=self.action_space,
-            step=self._steps,
+            step=int(self._core.state[b]["steps"]),
             episode_length=self.episode_length,
         )
+
+    @property
+    def belief(self) -> GridBelief:
+        """The exact Markov belief (B = 1; the env's own, or with a shared core a copy)."""
+        return self._core.member_belief(self._member)
 
     @property
     def true_pose(self) -> tuple[int, int, int]:
         """The robot's pose ``(ix, iy, h)``: for evaluation and rendering only; it is never
         part of an observation or of the planner view."""
-        return self._pose
+        return self._core.pose(self._member)
 
     @property
     def grid(self) -> OccupancyGrid:
         """The current maze as an occupancy grid (1 m cells, origin (0, 0, 0))."""
-        if self._grid is None:
-            self._grid = maze_to_grid(self._walls)
-        return self._grid
+        return self._core.grid(self._member)
 
     @property
     def walls(self) -> NDArray[np.bool_]:
         """``(n, n)`` bool, True = wall, ``walls[iy, ix]``: the current maze (read-only)."""
-        return self._walls
+        return self._core.walls[self._member]
 
     @property
     def maze_index(self) -> int | None:
         """The test-set entry of the current episode (None for a random maze)."""
         return self._maze_index
+
+    def last_info(self) -> dict[str, Any]:
+        """The info dict of the last step or reset."""
+        b = self._member
+        info = step_info(self._core.outcome(b), int(self._core.state[b]["collisions"]),
+                         self._reward)
+        info["depth"] = int(self._core.state[b]["depth"])
+        info["max_prob"] = float(self._core.state[b]["max_prob"])
+        return info
 
     # -- helpers ------------------------------------------------------------------------------
 
@@ -507,57 +496,8 @@ class MazeEnv(gym.Env):
         walls, start = self.test_set[index]  # type: ignore[index]
         return walls, start, index
 
-    def _set_maze(self, walls: NDArray[np.bool_]) -> None:
-        """Install a maze: free mask, grid, sensor and the map channel."""
-        walls = np.array(walls, dtype=bool)
-        walls.setflags(write=False)
-        self._walls = walls
-        free = np.ascontiguousarray(~walls.T)
-        free.setflags(write=False)
-        self._free = free
-        self._grid: OccupancyGrid | None = None  # built on demand (planner view)
-        self._sensor = DepthSensor.from_free(free)
-        self._map_channel = walls.T.astype(np.float32)
-
-    def _observe(self) -> None:
-        """Read the depth at the true pose and correct the belief with it."""
-        x, y, h = self._pose
-        self._depth = int(self._sensor.table[x, y, h])
-        self.belief.update(self._sensor.likelihood(self._depth))
-        entropy, mode, top = self.belief.summary()
-        self._entropy = float(entropy[0])
-        self._mode = (int(mode[0, 0]), int(mode[0, 1]), int(mode[0, 2]))
-        self._max_prob = float(top[0])
-
     def _observation(self) -> NDArray[np.float32]:
-        n = self.size
-        image = np.empty((5, n, n), dtype=np.float32)
-        image[:4] = self.belief.prob[0].transpose(2, 0, 1)
-        image[4] = self._map_channel
-        if not self._flat:
-            return image
-        extra = np.array(
-            [self._depth / (n - 2), self._steps / self.episode_length], dtype=np.float32
-        )
-        return np.concatenate([image.reshape(-1), np.minimum(extra, 1.0)])
-
-    def _outcome(self, uncertainty: float, collided: bool) -> StepOutcome:
-        """The step by name: errors of the belief's mode, localized (max probability 1)."""
-        x, y, h = self._pose
-        mx, my, mh = self._mode
-        localized = self._max_prob >= LOCALIZED_PROB
-        dh = (mh - h) % N_HEADINGS
-        return StepOutcome(
-            math.hypot(mx - x, my - y), min(dh, N_HEADINGS - dh) * (math.pi / 2), self._entropy,
-            uncertainty, collided, 0.0, localized, localized and self._mode == self._pose,
-            localized, False, 0, math.nan,
-        )
-
-    def _info(self, outcome: StepOutcome) -> dict[str, Any]:
-        info = step_info(outcome, self._collisions, self._reward)
-        info["depth"] = self._depth
-        info["max_prob"] = self._max_prob
-        return info
+        return self._core.obs[self._member].copy()
 
 
 # --- drawing (numpy only) ----------------------------------------------------------------------

@@ -46,15 +46,15 @@ def depth_table_kernel(free: NDArray, out: NDArray) -> None:
 
 
 @numba.njit(cache=True, nogil=True)
-def _indicator_kernel(table: NDArray, out: NDArray) -> None:
-    """``out[z, ix, iy, h] = 1`` where ``table[ix, iy, h] == z >= 1`` (``out`` zeroed)."""
+def reading_likelihood(table: NDArray, z: int, out: NDArray) -> None:
+    """``p(z | pose)`` of the exact sensor for every pose of a depth ``table`` ``(X, Y, 4)``,
+    into ``out`` ``(X, Y, 4)`` float64: 1.0 where the table equals ``z``, else 0.0 (a reading
+    of 0 has likelihood 0 everywhere: no free pose reads it)."""
     nx, ny, nh = table.shape
     for x in range(nx):
         for y in range(ny):
             for h in range(nh):
-                z = table[x, y, h]
-                if z >= 1:
-                    out[z, x, y, h] = 1.0
+                out[x, y, h] = 1.0 if z >= 1 and table[x, y, h] == z else 0.0
 
 
 def _free_mask(free: ArrayLike) -> NDArray[np.bool_]:
@@ -73,15 +73,6 @@ def depth_table(free: ArrayLike) -> NDArray[np.int64]:
     out = np.empty((*mask.shape, N_HEADINGS), dtype=np.int64)
     depth_table_kernel(mask, out)
     return out
-
-
-def depth_likelihood(table: ArrayLike, z: int) -> NDArray[np.float64]:
-    """Likelihood ``p(z | pose)`` of reading ``z`` for every pose of a depth ``table``
-    (any shape): 1.0 where the table equals ``z``, else 0.0 (a reading of 0 has likelihood 0
-    everywhere: no free pose reads it)."""
-    table = np.asarray(table)
-    z = int(z)
-    return ((table == z) & (z >= 1)).astype(np.float64)
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,8 +96,9 @@ class DepthSensor:
     def from_free(cls, free: ArrayLike) -> DepthSensor:
         """The sensor of a free mask ``(X, Y)`` bool, indexed ``[ix, iy]``."""
         table = depth_table(free)
-        likelihoods = np.zeros((int(table.max()) + 1, *table.shape))
-        _indicator_kernel(table, likelihoods)
+        likelihoods = np.empty((int(table.max()) + 1, *table.shape))
+        for z in range(likelihoods.shape[0]):
+            reading_likelihood(table, z, likelihoods[z])
         table.setflags(write=False)
         likelihoods.setflags(write=False)
         return cls(table, likelihoods)

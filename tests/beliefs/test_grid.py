@@ -25,7 +25,7 @@ from active_loc.envs.maze_env import TURN_LEFT, TURN_RIGHT, MazeMotion
 from active_loc.maps.maze import eller_maze, maze_to_grid
 from active_loc.maps.occupancy import FREE, OCCUPIED, OccupancyGrid
 from active_loc.sensors import RANGE_BEARING
-from active_loc.sensors.depth import DepthSensor, depth_likelihood, depth_table
+from active_loc.sensors.depth import DepthSensor, depth_table, reading_likelihood
 from active_loc.sensors.lidar import LidarSensor
 
 # a tiny map, drawn with row y = 2 on top ('#' = occupied), indexed free[x, y]
@@ -461,7 +461,8 @@ def test_depth_sensor_likelihoods_are_indicators_of_the_table() -> None:
     sensor = DepthSensor.from_grid(maze_to_grid(walls))
     assert np.array_equal(sensor.table, depth_table(np.ascontiguousarray(~walls.T)))
     for z in range(0, sensor.max_depth + 3):
-        expected = depth_likelihood(sensor.table, z)
+        expected = np.empty(sensor.table.shape)
+        reading_likelihood(sensor.table, z, expected)
         assert np.array_equal(sensor.likelihood(z), expected)
         assert np.array_equal(expected, ((sensor.table == z) & (z >= 1)).astype(float))
     assert sensor.measure((1, 1, 0)) == sensor.table[1, 1, 0]

@@ -395,7 +395,7 @@ def test_planner_view_holds_no_truth() -> None:
     assert not any("pose" in name or "true" in name for name in names)
     view = env.planner_view()
     free = np.argwhere(~env.walls)
-    env._pose = (int(free[3, 1]), int(free[3, 0]), (env.true_pose[2] + 2) % 4)  # scramble
+    env._core.set_pose(0, (int(free[3, 1]), int(free[3, 0]), (env.true_pose[2] + 2) % 4))
     scrambled = env.planner_view()
     assert np.array_equal(view.belief.prob, scrambled.belief.prob)
     assert view.map == scrambled.map and np.array_equal(view.walls, scrambled.walls)

@@ -348,7 +348,7 @@ class MazeEnv(gym.Env):
         self.observation_space = gym.spaces.Box(0.0, 1.0, shape, dtype=np.float32)
         self._reward_name = self.config.reward
         # the maze has no step cost, collision penalty or outcome term
-        self._reward = RewardSettings(self._reward_name, 0.0, 0.0, has_outcome=False)
+        self.reward_settings = RewardSettings(self._reward_name, 0.0, 0.0, has_outcome=False)
         self._terminate_when_localized = bool(self.config.terminate_when_localized)
         test_set = self.config.test_set
         if isinstance(test_set, MazeSet):
@@ -461,7 +461,7 @@ class MazeEnv(gym.Env):
         """The info dict of the last step or reset."""
         b = self._member
         info = step_info(self._core.outcome(b), int(self._core.state[b]["collisions"]),
-                         self._reward)
+                         self.reward_settings)
         info["depth"] = int(self._core.state[b]["depth"])
         info["max_prob"] = float(self._core.state[b]["max_prob"])
         return info

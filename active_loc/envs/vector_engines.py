@@ -1,13 +1,16 @@
 """What steps the members of :class:`~active_loc.envs.vector_env.ActiveLocalizationVectorEnv`.
 
-Two engines with one interface (``obs``, ``reset_member``, ``reset_members``, ``step``,
+Three engines with one interface (``obs``, ``reset_member``, ``reset_members``, ``step``,
 ``infos``, ``info_dicts``, ``frame``, ``workers``):
 
 * :class:`BatchedLandmarkEngine`: the EKF landmark ids. One :class:`LandmarkCore` with
   B = n members advances the whole batch in one numba kernel call (spread over numba's
   threads for large batches), and the info arrays are read off its state matrix with numpy:
   no Python loop over members on a step's path.
-* :class:`MemberEngine`: every other id (MCL, grid Markov, unknown correspondences, the maze).
+* :class:`BatchedMazeEngine`: the maze. One :class:`~active_loc.envs.maze_core.MazeCore`
+  with B = n steps every member in one kernel call; the n single envs stay attached to it as
+  its members, to pick their mazes and starts at a reset and to render.
+* :class:`MemberEngine`: every other id (MCL, grid Markov, unknown correspondences).
   Their cores hold one episode each, so the engine keeps n unwrapped single envs and steps
   and autoresets them on worker threads, each thread taking the next member left, slowest
   first (the particle and grid kernels release the GIL, so two cores run two sub-envs'
@@ -54,6 +57,7 @@ from active_loc.envs.localization_env import (
     localization_info,
     reward_settings,
 )
+from active_loc.envs.maze_env import MazeEnv
 from active_loc.envs.rewards import step_reward
 from active_loc.parallel import set_thread_count
 
@@ -253,6 +257,92 @@ class BatchedLandmarkEngine:
             self.core.actions[:] = actions
             return
         self.core.actions[:] = self._primitives[np.where(active, actions, 0)]
+
+
+class BatchedMazeEngine:
+    """n maze episodes in one :class:`~active_loc.envs.maze_core.MazeCore` with B = n.
+
+    Args:
+        envs: the n single envs (unwrapped); each is attached to the shared core as its
+            member and still picks its member's mazes and starts from its own Generator (and
+            renders it).
+    """
+
+    def __init__(self, envs: list[MazeEnv]) -> None:
+        self.envs = envs
+        self.num_envs = len(envs)
+        self.core = envs[0].new_core(self.num_envs)
+        for b, env in enumerate(envs):
+            env.attach(self.core, b)
+        self.workers = 1
+        self.single_observation_space = envs[0].observation_space
+        self.single_action_space = envs[0].action_space
+        self._reward = envs[0].reward_settings
+        self._actions = np.zeros(self.num_envs, dtype=np.int64)
+
+    @property
+    def obs(self) -> NDArray[np.float32]:
+        """``(n, *obs_shape)`` the current observations (a view)."""
+        return self.core.obs
+
+    def reset_member(self, b: int, seed: int | None, options: dict[str, Any] | None) -> None:
+        self.envs[b].reset(seed=seed, options=options)
+
+    def reset_members(self, rows: Sequence[int]) -> None:
+        """Autoreset the members in ``rows`` (their Generators go on)."""
+        for b in rows:
+            self.envs[b].reset()
+
+    def step(
+        self, actions: Any, active: NDArray[np.bool_], autoreset: Sequence[int] = ()
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_]]:
+        """Step the active members in one kernel call, then autoreset those in ``autoreset``
+        (inactive ones); ``(rewards, terminated, truncated)`` of all n (zero and False for
+        the inactive members)."""
+        actions = check_actions(actions, self.single_action_space, active)
+        np.copyto(self._actions, actions, where=active, casting="unsafe")
+        self.core.step(self._actions, active)
+        state = self.core.state
+        rewards = np.where(active, state["reward"], 0.0)
+        terminated = active & state["terminated"]
+        truncated = active & state["truncated"]
+        self.reset_members(autoreset)
+        return rewards, terminated, truncated
+
+    def infos(self, mask: NDArray[np.bool_]) -> BatchInfo:
+        """The members' info arrays (a single env's keys and values), with ``mask`` as every
+        ``"_key"``: all n rows are filled, whatever the mask."""
+        state = self.core.state
+        mask = mask.copy()
+        mask.flags.writeable = False
+        n = self.num_envs
+        reward = self._reward
+        terms = {reward.name: state["uncertainty"].copy(),
+                 "step_cost": np.full(n, -reward.step_cost),
+                 "collision": np.where(state["collided"], -reward.collision_penalty, 0.0)}
+        info: BatchInfo = {  # the single env's keys, in its order
+            "pose_error": state["pose_error"].copy(),
+            "heading_error": state["heading_error"].copy(),
+            "entropy": state["entropy"].copy(),
+            "localized": state["localized"].copy(),
+            "is_success": state["success"].copy(),
+            "collisions": state["collisions"].copy(),
+            "reward_terms": with_masks(terms, mask),
+            "depth": state["depth"].copy(),
+            "max_prob": state["max_prob"].copy(),
+        }
+        return with_masks(info, mask)
+
+    def info_dicts(self, rows: list[int] | None = None) -> list[dict[str, Any]]:
+        """The info dicts of the members in ``rows`` (None: all), as single envs return them."""
+        return [self.envs[b].last_info() for b in (range(self.num_envs) if rows is None else rows)]
+
+    def frame(self, b: int) -> Any:
+        return self.envs[b].render()
+
+    def close(self) -> None:
+        for env in self.envs:
+            env.close()
 
 
 class MemberEngine:

@@ -7,8 +7,8 @@ Registered as the ``vector_entry_point`` of every ``ActiveLoc`` id, so that::
 
 returns it. Sub-env i is seeded with seed + i and reproduces, step for step, a single env
 made with the same kwargs and seeded seed + i (observations, rewards, flags and infos). The
-EKF landmark ids step the whole batch in one kernel call; the others step their members on
-worker threads (:mod:`active_loc.envs.vector_engines`).
+EKF landmark ids and the maze step the whole batch in one kernel call; the others step their
+members on worker threads (:mod:`active_loc.envs.vector_engines`).
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ from active_loc.envs.localization_env import ActiveLocalizationEnv
 from active_loc.envs.maze_env import MazeEnv
 from active_loc.envs.vector_engines import (
     BatchedLandmarkEngine,
+    BatchedMazeEngine,
     BatchInfo,
     MemberEngine,
     batched_core,
@@ -49,11 +50,11 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         render_envs: how many sub-envs ``render()`` draws, tiled in a grid (1: the first
             sub-env's frame as is).
         workers: threads stepping the sub-envs (the kernels release the GIL). None: one per
-            CPU core, at most 2. The MCL, grid and maze ids step and autoreset their sub-envs
-            on Python threads, each taking the next one left (MCL: 1.6x to 2x
-            ``SyncVectorEnv`` on 2 cores); the batched EKF ids spread one kernel over
-            numba's threads once each gets 64 sub-envs or more. The results are the same for
-            any value.
+            CPU core, at most 2. The MCL and grid ids step and autoreset their sub-envs on
+            Python threads, each taking the next one left (MCL: 1.6x to 2x ``SyncVectorEnv``
+            on 2 cores); the batched EKF ids spread one kernel over numba's threads once each
+            gets 64 sub-envs or more; the maze's one kernel call runs on one thread. The
+            results are the same for any value.
         env_class: the single env class (``ActiveLocalizationEnv`` or ``MazeEnv``).
         **env_kwargs: the single env's kwargs (``scenario`` and config fields, or the maze's).
 
@@ -103,7 +104,7 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
 
         template = env_class(**env_kwargs)
-        self.engine: BatchedLandmarkEngine | MemberEngine
+        self.engine: BatchedLandmarkEngine | BatchedMazeEngine | MemberEngine
         self._renderer: Any = None
         if workers is None:
             workers = min(2, os.cpu_count() or 1)
@@ -117,7 +118,10 @@ class ActiveLocalizationVectorEnv(VectorEnv):
             if render_mode is not None:
                 for b in range(render_envs):
                     members[b] = env_class(render_mode=render_mode, **env_kwargs)
-            self.engine = MemberEngine(members, workers)
+            if isinstance(template, MazeEnv):
+                self.engine = BatchedMazeEngine(members)  # type: ignore[arg-type]
+            else:
+                self.engine = MemberEngine(members, workers)
         self.single_observation_space = self.engine.single_observation_space
         self.single_action_space = self.engine.single_action_space
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -262,7 +266,7 @@ class ActiveLocalizationVectorEnv(VectorEnv):
 
     def _member_frame(self, b: int) -> NDArray[np.uint8]:
         engine = self.engine
-        if isinstance(engine, MemberEngine):
+        if isinstance(engine, (MemberEngine, BatchedMazeEngine)):
             return engine.frame(b)
         if self._renderer is None:
             from active_loc.envs.rendering import LandmarkRenderer

@@ -17,7 +17,7 @@ from gymnasium.vector import AutoresetMode
 
 from active_loc.envs import ActiveLocalizationVectorEnv
 from active_loc.envs.landmark_core import PRANGE_MIN_MEMBERS
-from active_loc.envs.vector_engines import BatchedLandmarkEngine, MemberEngine
+from active_loc.envs.vector_engines import BatchedLandmarkEngine, BatchedMazeEngine, MemberEngine
 from tests.envs.test_envs import CASES, ENV_IDS, vector_actions
 
 N_ENVS = 3
@@ -89,7 +89,8 @@ def test_native_equals_single_envs(env_id: str, action_type: str) -> None:
     native, sync = make_pair(env_id, AutoresetMode.NEXT_STEP, action_type=action_type)
     assert isinstance(native, ActiveLocalizationVectorEnv)
     assert native.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
-    engine = BatchedLandmarkEngine if env_id in BATCHED_IDS else MemberEngine
+    engine = (BatchedLandmarkEngine if env_id in BATCHED_IDS
+              else BatchedMazeEngine if env_id == "ActiveLoc/Maze-v0" else MemberEngine)
     assert isinstance(native.engine, engine)
     assert native.single_observation_space == sync.single_observation_space
     assert native.action_space == sync.action_space

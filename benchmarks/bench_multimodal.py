@@ -21,6 +21,8 @@ over minutes (about 25% on a shared 2-core host) lands on both. Reported:
 * ``reset``: milliseconds per ``reset()`` of a single env, with a new map every episode and
   (head only, ``map_pool``) with a pool of maps;
 * ``split``: where a head step's time goes (:func:`step_split`);
+* ``tracking``: LandmarkMCL-v0 tracking a converged belief of about 500 particles, with the
+  default maximum of 100000 and with a maximum of 1000 (:func:`tracking_rate`);
 * ``ppo``: PPO through ``train.py`` on the marked_rooms arena of docs/results.md (8 native
   envs, ``--ppo-minutes`` each): the env's share of the wall time and its steps per second,
   and (head only) the same with ``map_pool=16``.
@@ -28,7 +30,7 @@ over minutes (about 25% on a shared 2-core host) lands on both. Reported:
 It measures and asserts nothing; the targets are printed beside the figures.
 
     python benchmarks/bench_multimodal.py [--repeats 3] [--ids LandmarkMCL-v0,...]
-        [--parts single,native,reset,split,ppo] [--head REF] [--json out.json]
+        [--parts single,native,reset,split,tracking,ppo] [--head REF] [--json out.json]
 """
 
 from __future__ import annotations
@@ -62,6 +64,8 @@ TARGETS = {
     "ActiveLoc/GridMCL-v0": "single >= 2x base",
     "ActiveLoc/GridMarkov-v0": "single >= 2x base",
     "ActiveLoc/Maze-v0": "native n=64 >= 3x SyncVectorEnv",
+    "ActiveLoc/LandmarkMCL-v0 tracking": "max 100000 costs <= 1.4x max 1000 (~500 active)",
+    "native": "every multimodal id's native n=16 >= 1.8x its single env",
 }
 
 
@@ -123,6 +127,33 @@ def vector_rate(env_id: str, n: int, calls: int, repeats: int, kwargs: dict,
     best = min(run(0, calls) for _ in range(repeats))
     envs.close()
     return {"steps_per_s": calls * n / best}
+
+
+#: LandmarkMCL-v0 tracking: a Gaussian start the filter converges from in a few steps, KLD
+#: sampling then holding it at about min_particles = 500 particles
+TRACKING = {"initial_belief": "gaussian", "terminate_when_localized": False}
+
+
+def tracking_rate(n_particles: int, steps: int, warm_up: int, repeats: int) -> dict:
+    """Best-of-``repeats`` steps per second of LandmarkMCL-v0 tracking a converged belief
+    with a maximum of ``n_particles``: ``steps`` random steps timed after ``warm_up`` untimed
+    ones from the reset; ``particles``: the active count at the end."""
+    import gymnasium as gym
+
+    env = gym.make("ActiveLoc/LandmarkMCL-v0", n_particles=n_particles, **TRACKING)
+    actions = _actions(env.action_space, warm_up + steps, 2)
+    best = float("inf")
+    for _ in range(repeats + 1):  # the first run compiles or loads the kernels
+        env.reset(seed=0)
+        for action in actions[:warm_up]:
+            env.step(action)
+        start = time.perf_counter()
+        for action in actions[warm_up:]:
+            env.step(action)
+        best = min(best, time.perf_counter() - start)
+    particles = env.unwrapped.core.belief.n_active
+    env.close()
+    return {"steps_per_s": steps / best, "particles": particles}
 
 
 def reset_cost(env_id: str, resets: int, repeats: int, kwargs: dict) -> dict:
@@ -276,7 +307,7 @@ def worker(request: dict) -> dict:
 
     kind = request.pop("kind")
     return {"single": single_rate, "vector": vector_rate, "reset": reset_cost,
-            "split": step_split, "ppo": ppo_split}[kind](**request)
+            "split": step_split, "ppo": ppo_split, "tracking": tracking_rate}[kind](**request)
 
 
 # --- driver ---------------------------------------------------------------------------------
@@ -322,7 +353,7 @@ def main() -> None:
     parser.add_argument("--maze-calls", type=int, default=300)
     parser.add_argument("--resets", type=int, default=5)
     parser.add_argument("--ids", default=",".join(i.split("/")[1] for i in IDS))
-    parser.add_argument("--parts", default="single,native,reset,split,ppo")
+    parser.add_argument("--parts", default="single,native,reset,split,tracking,ppo")
     parser.add_argument("--ppo-minutes", type=float, default=3.0)
     parser.add_argument("--head", default=None,
                         help="time this commit (a worktree) instead of the checkout's files")
@@ -376,6 +407,11 @@ def main() -> None:
                                           "steps": _steps_for(env_id, args) // 2,
                                           "kwargs": {}})}
             report(row)
+    if "tracking" in parts:
+        for n_particles in (100000, 1000):
+            compare("ActiveLoc/LandmarkMCL-v0 tracking", f"max {n_particles} particles",
+                    {"kind": "tracking", "n_particles": n_particles, "steps": 250,
+                     "warm_up": 40, "repeats": args.repeats})
     if "ppo" in parts:
         request = {"kind": "ppo", "env_kwargs": ARENA, "minutes": args.ppo_minutes,
                    "n_envs": 8, "vec_env": "native"}

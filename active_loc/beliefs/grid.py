@@ -270,7 +270,7 @@ def turn_kernel(
     nk = offsets.shape[1]
     out[:] = 0.0
     for b in range(nb):
-        for x in range(nx):
+        for x in numba.prange(nx):  # cells never mix: in parallel in the twin
             for y in range(ny):
                 if not free[b, x, y]:
                     continue
@@ -282,6 +282,9 @@ def turn_kernel(
                         w = weights[b, k]
                         if w != 0.0:
                             out[b, x, y, (h + offsets[b, k]) % nh] += p * w
+
+
+turn_kernel_parallel = parallel_twin(turn_kernel)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -444,17 +447,27 @@ def update_kernel(prob: NDArray, likelihood: NDArray, free: NDArray, evidence: N
 
 @numba.njit(cache=True, nogil=True)
 def entropy_kernel(prob: NDArray, log_cell_volume: float, out: NDArray) -> None:
-    """``out[b] = -sum p log p + log_cell_volume`` (nats) of ``prob`` ``(B, X, Y, H)``."""
+    """``out[b] = -sum p log p + log_cell_volume`` (nats) of ``prob`` ``(B, X, Y, H)``,
+    summed a column of cells (one ``x``) at a time, then over the columns in order (in
+    parallel over the columns in the twin, with the same sums)."""
     nb, nx, ny, nh = prob.shape
+    columns = np.empty(nx)
     for b in range(nb):
-        s = 0.0
-        for x in range(nx):
+        for x in numba.prange(nx):
+            s = 0.0
             for y in range(ny):
                 for h in range(nh):
                     p = prob[b, x, y, h]
                     if p > 0.0:
                         s -= p * math.log(p)
-        out[b] = s + log_cell_volume
+            columns[x] = s
+        total = 0.0
+        for x in range(nx):
+            total += columns[x]
+        out[b] = total + log_cell_volume
+
+
+entropy_kernel_parallel = parallel_twin(entropy_kernel)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -481,9 +494,10 @@ def stats_member(prob: NDArray, b: int, log_cell_volume: float, index: NDArray) 
     """Entropy (nats, :func:`entropy_kernel`) and largest probability of member ``b`` in
     one pass; its most probable pose goes to ``index`` ``(3,)`` (:func:`mode_kernel`)."""
     _, nx, ny, nh = prob.shape
-    s = 0.0
+    total = 0.0
     best = -1.0
     for x in range(nx):
+        s = 0.0  # the entropy by columns of cells, summed as entropy_kernel sums them
         for y in range(ny):
             for h in range(nh):
                 p = prob[b, x, y, h]
@@ -494,7 +508,8 @@ def stats_member(prob: NDArray, b: int, log_cell_volume: float, index: NDArray) 
                     index[0] = x
                     index[1] = y
                     index[2] = h
-    return s + log_cell_volume, best
+        total += s
+    return total + log_cell_volume, best
 
 
 @numba.njit(cache=True, nogil=True)
@@ -911,7 +926,8 @@ class GridBelief:
         pick(translate_kernel, translate_kernel_parallel)(
             self._prob, self._free, self.clearance, move, move_w, self._scratch
         )
-        turn_kernel(self._scratch, self._free, turns, turn_w, self._prob)
+        pick(turn_kernel, turn_kernel_parallel)(self._scratch, self._free, turns, turn_w,
+                                                self._prob)
 
     def predict_unicycle(
         self, v: float, omega: float, dt: float, noise_std: ArrayLike = (0.0, 0.0, 0.0)
@@ -984,7 +1000,7 @@ class GridBelief:
     def entropy(self) -> NDArray[np.float64]:
         """``(B,)`` entropy (nats): histogram entropy + log(cell volume)."""
         out = np.empty(self._prob.shape[0])
-        entropy_kernel(self._prob, self.log_cell_volume, out)
+        pick(entropy_kernel, entropy_kernel_parallel)(self._prob, self.log_cell_volume, out)
         return out
 
     def mode(self) -> NDArray[np.int64]:

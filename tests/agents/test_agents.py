@@ -31,8 +31,8 @@ def scramble_truth(env: gym.Env, rng: np.random.Generator) -> Any:
         saved = base.core.pose.copy()
         base.core.pose[:] = saved + rng.normal(0.0, 3.0, saved.shape)
         return saved
-    saved = base._pose
-    base._pose = (int(rng.integers(1, 6)), int(rng.integers(1, 6)), int(rng.integers(4)))
+    saved = base.true_pose
+    base._core.set_pose(0, (int(rng.integers(1, 6)), int(rng.integers(1, 6)), int(rng.integers(4))))
     return saved
 
 
@@ -41,7 +41,7 @@ def restore_truth(env: gym.Env, saved: Any) -> None:
     if hasattr(base, "core"):
         base.core.pose[:] = saved
     else:
-        base._pose = saved
+        base._core.set_pose(0, saved)
 
 
 CASES = [

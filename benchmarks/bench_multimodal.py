@@ -82,6 +82,18 @@ def _actions(space: Any, count: int, seed: int) -> list:
     return list(rng.uniform(space.low, space.high, (count, *space.shape)).astype(space.dtype))
 
 
+def _run_episodes(env: Any, seed: int, actions: list) -> float:
+    """Seconds to step ``env`` (reset with ``seed``) through ``actions``, resetting ended
+    episodes inside the timed loop."""
+    env.reset(seed=seed)
+    start = time.perf_counter()
+    for action in actions:
+        _, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            env.reset()
+    return time.perf_counter() - start
+
+
 def single_rate(env_id: str, steps: int, repeats: int, kwargs: dict) -> dict:
     """Best-of-``repeats`` steps per second of one env over ``steps`` random actions."""
     import gymnasium as gym
@@ -89,17 +101,8 @@ def single_rate(env_id: str, steps: int, repeats: int, kwargs: dict) -> dict:
     env = gym.make(env_id, **kwargs)
     actions = _actions(env.action_space, steps, 0)
 
-    def run(seed: int, batch: list) -> float:
-        env.reset(seed=seed)
-        start = time.perf_counter()
-        for action in batch:
-            _, _, terminated, truncated, _ = env.step(action)
-            if terminated or truncated:
-                env.reset()
-        return time.perf_counter() - start
-
-    run(100, actions[: min(20, steps)])  # warm-up: numba kernels compiled or loaded
-    best = min(run(0, actions) for _ in range(repeats))
+    _run_episodes(env, 100, actions[: min(20, steps)])  # warm-up: kernels compiled or loaded
+    best = min(_run_episodes(env, 0, actions) for _ in range(repeats))
     env.close()
     return {"steps_per_s": steps / best}
 
@@ -240,21 +243,12 @@ def step_split(env_id: str, steps: int, kwargs: dict) -> dict:
     env = gym.make(env_id, **kwargs)
     actions = _actions(env.action_space, steps, 0)
 
-    def run() -> float:
-        env.reset(seed=0)
-        start = time.perf_counter()
-        for action in actions:
-            _, _, terminated, truncated, _ = env.step(action)
-            if terminated or truncated:
-                env.reset()
-        return time.perf_counter() - start
-
-    run()  # warm-up
-    wall = min(run() for _ in range(2))
+    _run_episodes(env, 0, actions)  # warm-up
+    wall = min(_run_episodes(env, 0, actions) for _ in range(2))
     profiler = cProfile.Profile()
     env.reset(seed=0)
     timed = TimedGenerator(env.unwrapped.np_random)
-    env.unwrapped._np_random = timed  # the same Generator: the same episode as run()
+    env.unwrapped._np_random = timed  # the same Generator: the same episode as the timed runs
     start = time.perf_counter()
     profiler.enable()
     for action in actions:

@@ -353,7 +353,7 @@ def main() -> None:
                         help="time this commit (a worktree) instead of the checkout's files")
     parser.add_argument("--json", default=None)
     args = parser.parse_args()
-    ids = [f"ActiveLoc/{name}" for name in args.ids.split(",")]
+    ids = [name if "/" in name else f"ActiveLoc/{name}" for name in args.ids.split(",")]
     parts = args.parts.split(",")
     head = ROOT if args.head is None else checkout(args.head)
     versions = {"base": checkout(BASE_COMMIT), "head": head}

@@ -146,6 +146,9 @@ class LocalizationConfig:
     # to a random free pose without the filter being told
     kidnap: bool = False
     kidnap_window: tuple[float, float] = (0.2, 0.6)
+    # steps after the kidnapping in which the episode neither ends nor succeeds: the filter's
+    # time to react (a belief confident about the old pose is not yet a verdict)
+    kidnap_grace: int = 10
     horizon: int = 200  # episode length the kidnap window refers to (the registered limit)
 
     def __post_init__(self) -> None:
@@ -254,6 +257,7 @@ class LocalizationConfig:
             raise ValueError(
                 f"kidnap_window must satisfy 0 <= lo <= hi <= 1, got {self.kidnap_window}"
             )
+        _integer("kidnap_grace", self.kidnap_grace, 0)
         if self.kidnap and self.belief != "mcl":
             raise ValueError("kidnap=True needs belief='mcl' (the EKF cannot recover from it)")
         mixture = self.lidar_mixture

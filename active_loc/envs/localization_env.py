@@ -79,8 +79,8 @@ class ActiveLocalizationEnv(gym.Env):
 
     Terminated when the belief is confident (largest position std below
     ``localized_position_std`` and heading std below ``localized_heading_std``, and no
-    kidnapping still ahead) unless ``terminate_when_localized=False``; truncated by
-    ``max_episode_steps`` of the registration.
+    kidnapping ahead or within ``kidnap_grace`` steps behind) unless
+    ``terminate_when_localized=False``; truncated by ``max_episode_steps`` of the registration.
 
     ## Info
 

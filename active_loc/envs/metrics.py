@@ -3,10 +3,12 @@
 Confident (``localized``): the largest position standard deviation of the belief is at most
 ``localized_position_std`` and its heading standard deviation at most
 ``localized_heading_std``. Right (``success``): confident, within ``success_position_tol`` and
-``success_heading_tol`` of the true pose, and no kidnapping still ahead. The episode may end
-(``terminal``) when the belief is confident and no kidnapping is ahead: with one pending,
-localizing is not yet the end of the task. The errors use the truth: they are for evaluation
-and rewards, never for the agent's observation.
+``success_heading_tol`` of the true pose, and no kidnapping unresolved. The episode may end
+(``terminal``) when the belief is confident and no kidnapping is unresolved. A kidnapping is
+unresolved from the reset until ``kidnap_grace`` steps after it: before it, localizing is not
+yet the end of the task; on its step and just after, the belief is still confident about the
+old pose, and the filter has not yet had the scans to react. The errors use the truth: they
+are for evaluation and rewards, never for the agent's observation.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ def belief_metrics(
     cov: NDArray,
     pos_err: float,
     head_err: float,
-    kidnap_pending: bool,
+    kidnap_unresolved: bool,
     localized_position_std: float,
     localized_heading_std: float,
     success_position_tol: float,
@@ -42,7 +44,7 @@ def belief_metrics(
     pos_std = position_std(cov)
     head_std = np.sqrt(max(cov[2, 2], 0.0))
     localized = pos_std <= localized_position_std and head_std <= localized_heading_std
-    success = (localized and not kidnap_pending and pos_err <= success_position_tol
+    success = (localized and not kidnap_unresolved and pos_err <= success_position_tol
                and head_err <= success_heading_tol)
-    terminal = localized and not kidnap_pending
+    terminal = localized and not kidnap_unresolved
     return pos_std, head_std, localized, success, terminal

@@ -437,9 +437,12 @@ class ParticleCore(StateViews):
         pose = row[X_POSE : X_POSE + 3]
         pos_err = float(np.hypot(pose[0] - mean[0], pose[1] - mean[1]))
         head_err = float(abs(wrap_angle(pose[2] - mean[2])))
-        # with a kidnapping ahead, localizing now is not yet the end of the task
+        # with a kidnapping ahead, or just behind, localizing now is not yet the end of the task
+        unresolved = cfg.kidnap and (
+            not self.kidnapped or self.t < self.kidnap_step + cfg.kidnap_grace
+        )
         pos_std, head_std, localized, success, terminal = belief_metrics(
-            cov, pos_err, head_err, cfg.kidnap and not self.kidnapped, cfg.localized_position_std,
+            cov, pos_err, head_err, unresolved, cfg.localized_position_std,
             cfg.localized_heading_std, cfg.success_position_tol, cfg.success_heading_tol,
         )
         stats[S_POS_ERR] = pos_err

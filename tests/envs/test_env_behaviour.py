@@ -314,6 +314,8 @@ def test_rejected_action_leaves_the_episode_unchanged(action_type: str) -> None:
         ({"start_pose": (1.0, 2.0)}, "start_pose must be three finite numbers"),
         ({"initial_belief_std": (0.0, 1.0, 1.0)}, "initial_belief_std must be a finite number > 0"),
         ({"outcome_reward": -1.0}, "outcome_reward must be a finite number >= 0"),
+        ({"kidnap_grace": -1}, "kidnap_grace must be an integer >= 0, got -1"),
+        ({"kidnap_grace": 2.5}, "kidnap_grace must be an integer >= 0, got 2.5"),
         ({"outcome_reward": 1.0, "terminate_when_localized": False},
          "outcome_reward .* needs terminate_when_localized=True"),
     ],

@@ -91,24 +91,34 @@ def test_symmetric_arena_leaves_passive_localization_ambiguous() -> None:
     assert near_truth >= 2 and near_mirror >= 2
 
 
-def test_kidnapping_happens_once_inside_its_window_and_success_waits_for_it() -> None:
-    env = gym.make("ActiveLoc/GridMCLKidnapped-v0", action_type="discrete")
+@pytest.mark.parametrize("grace", [10, 0])
+def test_kidnapping_happens_once_inside_its_window_and_success_waits_for_it(grace) -> None:
+    """Until ``kidnap_grace`` steps after the kidnapping, no success and no termination,
+    however confident the belief; the belief is confident on the kidnapping step itself (it
+    cannot know yet), which is why the grace exists."""
+    env = gym.make("ActiveLoc/GridMCLKidnapped-v0", action_type="discrete", kidnap_grace=grace,
+                   terminate_when_localized=False)
     config = env.unwrapped.config
     lo, hi = (round(f * config.horizon) for f in config.kidnap_window)
+    confident_when_kidnapped = 0
     for seed in range(3):
         obs, info = env.reset(seed=seed)
         assert not info["kidnapped"]
         kidnap_steps = []
-        for step in range(1, hi + 2):
+        for step in range(1, hi + grace + 2):
             before = env.unwrapped.core.pose[0].copy()
             obs, _, terminated, _, info = env.step(wander(obs))
+            assert not terminated
             if info["kidnapped"]:
                 kidnap_steps.append(step)
+                confident_when_kidnapped += info["localized"]
                 assert np.hypot(*(env.unwrapped.core.pose[0, :2] - before[:2])) > 0.0
-            elif not kidnap_steps:
-                # before the kidnapping, no success and no termination, however confident
-                assert not info["is_success"] and not terminated
+            if not kidnap_steps or step < kidnap_steps[0] + grace:
+                assert not info["is_success"]
+                assert not env.unwrapped.core.outcome(0).terminal
         assert len(kidnap_steps) == 1 and lo <= kidnap_steps[0] <= hi
+    if grace == 0:
+        assert confident_when_kidnapped >= 1  # the case the grace is for
 
 
 def test_grid_env_runs_on_a_ros_map_file() -> None:

@@ -1,0 +1,92 @@
+"""The truncated, cell-sorted kernel density of a particle set against the full sum."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from active_loc.beliefs.particle_density import (
+    _LOG_BALL_MASS,
+    TRUNCATION,
+    kde_log_density,
+    silverman_bandwidth,
+)
+
+
+def brute_force_log_density(particles, weights, bandwidth, queries) -> np.ndarray:
+    """The sum over every particle of the truncated Gaussian kernel, the heading residual
+    wrapped."""
+    r = queries[:, None, :] - particles[None, :, :]
+    r[..., 2] = (r[..., 2] + np.pi) % (2 * np.pi) - np.pi
+    s = ((r / bandwidth) ** 2).sum(-1)
+    log_k = -0.5 * s - 1.5 * np.log(2 * np.pi) - np.log(np.prod(bandwidth)) - _LOG_BALL_MASS
+    log_k[s > TRUNCATION**2] = -np.inf
+    terms = log_k + np.log(weights)[None, :]
+    top = terms.max(axis=1, keepdims=True)
+    with np.errstate(invalid="ignore"):  # no particle in reach: -inf - -inf
+        out = (top + np.log(np.exp(terms - top).sum(axis=1, keepdims=True)))[:, 0]
+    return np.where(np.isfinite(top[:, 0]), out, -np.inf)
+
+
+def _mixed_set(rng: np.random.Generator, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """A global-looking set: a uniform spread over 20 m x 20 m, two tight modes, headings
+    across the wrap."""
+    spread = np.column_stack([rng.uniform(0, 20, k // 2), rng.uniform(0, 20, k // 2),
+                              rng.uniform(-np.pi, np.pi, k // 2)])
+    mode_a = rng.normal([5.0, 5.0, 3.1], [0.2, 0.2, 0.05], (k // 4, 3))
+    mode_b = rng.normal([15.0, 12.0, -1.0], [0.3, 0.1, 0.1], (k - k // 2 - k // 4, 3))
+    particles = np.vstack([spread, mode_a, mode_b])
+    weights = rng.uniform(0.1, 1.0, k)
+    return particles, weights / weights.sum()
+
+
+@pytest.mark.parametrize("bandwidth", [(0.3, 0.3, 0.1), (1.5, 1.0, 0.8), (0.05, 0.05, 4.0)])
+def test_the_truncated_density_equals_the_full_sum(bandwidth) -> None:
+    rng = np.random.default_rng(0)
+    particles, weights = _mixed_set(rng, 3000)
+    queries = np.vstack([
+        particles[rng.integers(0, len(particles), 300)] + rng.normal(0, 0.2, (300, 3)),
+        np.column_stack([rng.uniform(-2, 22, 200), rng.uniform(-2, 22, 200),
+                         rng.uniform(-4, 4, 200)]),
+    ])
+    h = np.array(bandwidth)
+    fast = kde_log_density(particles, weights, h, queries)
+    exact = brute_force_log_density(particles, weights, np.minimum(h, np.pi), queries)
+    np.testing.assert_array_equal(fast == -np.inf, exact == -np.inf)
+    reached = exact > -np.inf
+    assert reached.sum() > 100
+    np.testing.assert_allclose(fast[reached], exact[reached], rtol=0, atol=1e-9)
+
+
+def test_the_density_integrates_to_one() -> None:
+    rng = np.random.default_rng(1)
+    particles = rng.normal([2.0, -1.0, 3.0], [0.5, 0.3, 0.2], (400, 3))
+    weights = np.full(400, 1 / 400)
+    h = silverman_bandwidth(particles, weights, (0.01, 0.01, 0.01))
+    axes = [np.linspace(-1, 5, 61), np.linspace(-3.5, 1.5, 51),
+            np.linspace(-np.pi, np.pi, 73)[:-1]]
+    grid = np.stack([m.ravel() for m in np.meshgrid(*axes, indexing="ij")], axis=1)
+    volume = 0.1 * 0.1 * (2 * np.pi / 72)
+    assert np.exp(kde_log_density(particles, weights, h, grid)).sum() * volume == pytest.approx(
+        1.0, abs=0.01)
+
+
+def test_silverman_bandwidth_follows_the_spread_and_is_floored() -> None:
+    rng = np.random.default_rng(2)
+    wide = rng.normal(0.0, [2.0, 1.0, 0.5], (5000, 3))
+    h = silverman_bandwidth(wide, np.full(5000, 1 / 5000), (0.01, 0.01, 0.01))
+    factor = (4.0 / (5.0 * 5000)) ** (1 / 7)
+    np.testing.assert_allclose(h, np.array([2.0, 1.0, 0.5]) * factor, rtol=0.05)
+    one_pose = np.zeros((10, 3))
+    np.testing.assert_array_equal(
+        silverman_bandwidth(one_pose, np.full(10, 0.1), (0.1, 0.1, 0.05)), [0.1, 0.1, 0.05])
+
+
+def test_bad_inputs_are_refused() -> None:
+    with pytest.raises(ValueError, match="bandwidth"):
+        kde_log_density(np.zeros((2, 3)), np.full(2, 0.5), (0.1, 0.0, 0.1), np.zeros((1, 3)))
+    with pytest.raises(ValueError, match="weights"):
+        kde_log_density(np.zeros((2, 3)), np.full(3, 0.5), (0.1, 0.1, 0.1), np.zeros((1, 3)))
+    with pytest.raises(ValueError, match="finite"):
+        kde_log_density(np.full((2, 3), np.nan), np.full(2, 0.5), (0.1, 0.1, 0.1),
+                        np.zeros((1, 3)))

@@ -51,7 +51,7 @@ def silverman_bandwidth(
     var_xy = w @ (p[:, :2] - mean_xy) ** 2
     # the heading's circular spread: sqrt(-2 log R), R the mean resultant length
     resultant = math.hypot(float(w @ np.cos(p[:, 2])), float(w @ np.sin(p[:, 2])))
-    heading_std = math.sqrt(-2.0 * math.log(max(resultant, 1e-300)))
+    heading_std = math.sqrt(-2.0 * math.log(min(max(resultant, 1e-300), 1.0)))  # R <= 1
     sigma = np.array([math.sqrt(var_xy[0]), math.sqrt(var_xy[1]), min(heading_std, math.pi)])
     n_eff = 1.0 / float(w @ w)
     factor = (4.0 / (5.0 * n_eff)) ** (1.0 / 7.0)

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from active_loc.beliefs.mcl import PROPOSALS
 from active_loc.maps import LandmarkMap, OccupancyGrid
 from active_loc.maps.pool import MAX_MAP_POOL
 from active_loc.sensors.detections import MAX_CLUTTER_RATE
@@ -119,6 +120,10 @@ class LocalizationConfig:
     # MCL and grid: the power each scan's likelihood is raised to (see MCLBelief); 1 = the
     # plain filter
     likelihood_exponent: float = 1.0
+    # MCL: "motion" (plain MCL) or "mixture" (mixture MCL: a share mixture_share of every
+    # update's particles drawn from the scan: its detections, or the lidar's scored lattice)
+    proposal: str = "motion"
+    mixture_share: float = 0.2
     # grid (Markov localization, Algorithm 1; grid maps only): the side of the belief's cells
     # (m), laid over the map from its origin, and the number of heading bins
     grid_cell_size: float = 0.25
@@ -258,6 +263,13 @@ class LocalizationConfig:
                 f"kidnap_window must satisfy 0 <= lo <= hi <= 1, got {self.kidnap_window}"
             )
         _integer("kidnap_grace", self.kidnap_grace, 0)
+        _one_of("proposal", self.proposal, PROPOSALS)
+        _number("mixture_share", self.mixture_share)
+        if not 0.0 < self.mixture_share < 1.0:
+            raise ValueError(f"mixture_share must be in (0, 1), got {self.mixture_share}")
+        if self.proposal == "mixture" and self.belief != "mcl":
+            raise ValueError(f"proposal='mixture' is mixture MCL: it needs belief='mcl', got "
+                             f"belief={self.belief!r}")
         if self.kidnap and self.belief != "mcl":
             raise ValueError("kidnap=True needs belief='mcl' (the EKF cannot recover from it)")
         mixture = self.lidar_mixture

@@ -234,6 +234,7 @@ class ActiveLocalizationEnv(gym.Env):
             likelihood_exponent=self.config.likelihood_exponent,
             collision_penalty=self.config.collision_penalty,
             range_table=getattr(self.core, "range_table", None),
+            scan_dual=getattr(self.core, "scan_dual", None),
         )
 
     # -- helpers ----------------------------------------------------------------------------

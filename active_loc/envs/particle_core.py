@@ -26,6 +26,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from active_loc.beliefs.lidar_dual import LidarDualProposal, update_with_scan
 from active_loc.beliefs.mcl import FreeSpace, MCLBelief
 from active_loc.beliefs.particle_stats import ENTROPY_BINS
 from active_loc.envs.actions import ControlLimits
@@ -167,6 +168,7 @@ class ParticleCore(StateViews):
         self._distance: NDArray[np.float64] | None = None
         self._log_table: NDArray[np.float64] | None = None  # likelihood field, per cell
         self._range_table: RangeTable | None = None  # beam model, precomputed casts
+        self._dual: LidarDualProposal | None = None  # mixture MCL's scan lattice
         self.crowd: Crowd | None = None  # people the map does not hold
         self.t = 0
         self.kidnap_step = -1
@@ -224,7 +226,8 @@ class ParticleCore(StateViews):
             resample_threshold=cfg.resample_threshold, augmented=cfg.augmented,
             alpha_slow=cfg.recovery_alpha_slow, alpha_fast=cfg.recovery_alpha_fast, kld=cfg.kld,
             min_particles=min(cfg.min_particles, cfg.n_particles),
-            likelihood_exponent=cfg.likelihood_exponent,
+            likelihood_exponent=cfg.likelihood_exponent, proposal=cfg.proposal,
+            mixture_share=cfg.mixture_share,
         )
         if cfg.initial_belief == "uniform":
             self.belief.initialize_uniform(rng)
@@ -275,9 +278,9 @@ class ParticleCore(StateViews):
     def derive_map_data(cls, cfg: LocalizationConfig, lmap: LandmarkMap | OccupancyGrid) -> dict:
         """What the core derives from a map, by attribute name: the filter's free space and,
         on grids, the ray-casting arrays, the distance field and the lidar model's table
-        (likelihood field) or precomputed casts (beam model with ``lidar_range_bins``).
-        Read-only once built, so that the episodes and sub-envs drawing a pool's map share
-        it."""
+        (likelihood field) or precomputed casts (beam model with ``lidar_range_bins``), and
+        for mixture MCL the scan lattice of its dual proposal. Read-only once built, so that
+        the episodes and sub-envs drawing a pool's map share it."""
         if isinstance(lmap, OccupancyGrid):
             lidar = build_lidar(cfg)
             grid_arrays = lmap.kernel_arrays()
@@ -287,17 +290,21 @@ class ParticleCore(StateViews):
                 log_table = lidar.log_table(distance)
             elif cfg.lidar_range_bins:
                 range_table = RangeTable.build(lidar, grid_arrays, n_angles=cfg.lidar_range_bins)
+            dual = None
+            if cfg.proposal == "mixture":
+                field = log_table if log_table is not None else lidar.log_table(distance)
+                dual = LidarDualProposal.build(lmap, lidar, field)
             return {
                 "_free": FreeSpace.from_grid(lmap.values, lmap.resolution, lmap.origin),
                 "_grid_arrays": grid_arrays, "_distance": distance, "_log_table": log_table,
-                "_range_table": range_table,
+                "_range_table": range_table, "_dual": dual,
             }
         if lmap.n_landmarks > cfg.max_landmarks:
             raise ValueError(
                 f"the map has {lmap.n_landmarks} landmarks but max_landmarks="
                 f"{cfg.max_landmarks}; raise max_landmarks"
             )
-        return {"_free": FreeSpace.from_box(*lmap.bounds)}
+        return {"_free": FreeSpace.from_box(*lmap.bounds), "_dual": None}
 
     def _bind_map(self, lmap: LandmarkMap | OccupancyGrid, data: dict) -> None:
         """Use the per-map arrays ``data`` (:meth:`derive_map_data`) of ``lmap``."""
@@ -306,6 +313,11 @@ class ParticleCore(StateViews):
         if isinstance(lmap, LandmarkMap):
             self.landmarks[:] = 0.0
             self.landmarks[0, : lmap.n_landmarks] = lmap.positions
+
+    @property
+    def scan_dual(self) -> LidarDualProposal | None:
+        """Mixture MCL's scan lattice for the current map (grid maps), else None."""
+        return self._dual
 
     @property
     def range_table(self) -> RangeTable | None:
@@ -365,7 +377,9 @@ class ParticleCore(StateViews):
         lmap = self.maps[0]
         if isinstance(lmap, OccupancyGrid):
             ranges = self._scan(rng)
-            belief.update(self._scan_log_likelihood(ranges, belief.particles), rng)
+            update_with_scan(belief, ranges,
+                             functools.partial(self._scan_log_likelihood, ranges), self._dual,
+                             rng)
         else:
             assert lmap is not None
             sensor = self.models.sensor

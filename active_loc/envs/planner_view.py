@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -12,6 +13,7 @@ from active_loc.beliefs.association import DEFAULT_GATE, update_with_association
 from active_loc.beliefs.ekf import EKFBelief
 from active_loc.beliefs.ekf_filterpy import FilterpyEKFBelief
 from active_loc.beliefs.grid import GridBelief
+from active_loc.beliefs.lidar_dual import LidarDualProposal, update_with_scan
 from active_loc.beliefs.mcl import MCLBelief
 from active_loc.envs.actions import ControlLimits
 from active_loc.maps import LandmarkMap, OccupancyGrid
@@ -51,6 +53,7 @@ class PlannerView:
             planners can weigh a bump against the information a step gains.
         range_table: the beam model's casts precomputed for this map, when the env's filter
             uses them (``lidar_range_bins > 0``); :meth:`scan_log_likelihood` scores with it.
+        scan_dual: the map's scan lattice, when the env's filter is mixture MCL on a grid map.
 
     It holds no configuration beyond that: a fixed start pose, for one, is the truth.
     """
@@ -67,6 +70,7 @@ class PlannerView:
     likelihood_exponent: float = 1.0
     collision_penalty: float = 0.0
     range_table: RangeTable | None = None
+    scan_dual: LidarDualProposal | None = None
 
     def decode(self, action: object) -> NDArray[np.float64]:
         """Physical control (V m/s, omega rad/s) of an env action, as the env decodes it."""
@@ -200,7 +204,8 @@ class PlannerView:
             if isinstance(belief, GridBelief):
                 self._correct_grid(belief, z)
             else:
-                belief.update(self.scan_log_likelihood(z, belief.particles), rng)
+                update_with_scan(belief, z, functools.partial(self.scan_log_likelihood, z),
+                                 self.scan_dual, rng)
             return z, np.ones(z.shape[0], dtype=np.bool_)
         z, visible = self.sensor.measure(pose, self.map.positions, rng)
         if isinstance(belief, MCLBelief):

@@ -120,16 +120,21 @@ def lattice_field_log_likelihood(
     resolution: float,
     table: NDArray,
     out: NDArray | None = None,
+    beams: NDArray | None = None,
 ) -> NDArray[np.float64]:
     """The likelihood-field log-likelihood ``(X, Y, H)`` of scan ``z`` ``(M,)`` at the lattice
     of columns ``col_base`` ``(X,)``, rows ``row_base`` ``(Y,)`` (map grid coordinates) and
     ``headings`` ``(H,)`` (rad, map grid frame); ``-inf`` where ``free`` ``(X, Y)`` is False.
     ``table`` is :func:`padded_table` of the sensor's :meth:`~LidarSensor.log_table` on a map
-    of ``resolution`` m. Inputs are trusted (the caller built them)."""
+    of ``resolution`` m; ``beams`` (indices) scores a subset of the beams. Inputs are trusted
+    (the caller built them)."""
     if out is None:
         out = np.empty((col_base.shape[0], row_base.shape[0], headings.shape[0]))
+    angles = sensor.beam_angles
+    if beams is not None:
+        z, angles = np.ascontiguousarray(z[beams]), np.ascontiguousarray(angles[beams])
     pick(lattice_field_kernel, lattice_field_kernel_parallel)(
-        z, sensor.beam_angles, headings, col_base, row_base, free, table, 1.0 / resolution,
+        z, angles, headings, col_base, row_base, free, table, 1.0 / resolution,
         sensor.max_range, out,
     )
     return out

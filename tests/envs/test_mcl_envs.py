@@ -155,10 +155,11 @@ def test_particle_log_det_is_finite_and_matches_the_binned_covariance() -> None:
 
 
 def kidnapped_recoveries(augmented: bool, seeds: range) -> list[bool]:
-    """Success at the end of each GridMCLKidnapped-v0 episode (the wanderer drives)."""
+    """Success at the end of each GridMCLKidnapped-v0 episode (the wanderer drives), with
+    plain MCL: augmented MCL's uniform injection is the mechanism under test."""
     env = gym.make(
         "ActiveLoc/GridMCLKidnapped-v0", action_type="discrete", augmented=augmented,
-        terminate_when_localized=False,
+        terminate_when_localized=False, proposal="motion", n_particles=50000,
     )
     outcomes = []
     for seed in seeds:

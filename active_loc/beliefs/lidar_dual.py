@@ -26,6 +26,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -48,6 +49,8 @@ DUAL_HEADINGS = 36
 DUAL_BEAM_STRIDE = 4
 #: the uniform share of the proposal over the lattice (defensive importance sampling)
 DEFENSIVE_SHARE = 0.1
+#: nats below the best lattice pose beyond which a pose's softmax share is taken as 0
+SOFTMAX_CUTOFF = 40.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,8 +108,8 @@ class LidarDualProposal:
         return self.cell_ratio * self.resolution
 
     def scores(self, ranges: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The likelihood field's log-likelihood ``(F, H)`` (nats, the scored beams only) of
-        the scan ``ranges`` ``(M,)`` (m) at the free lattice poses."""
+        """The likelihood field's log-likelihood ``(X, Y, H)`` (nats, the scored beams only) of
+        the scan ``ranges`` ``(M,)`` (m) at the lattice poses; ``-inf`` off the free cells."""
         nx, ny = self.free.shape
         out = np.empty((nx, ny, DUAL_HEADINGS))  # per call: sub-envs share the lattice
         lattice_field_log_likelihood(
@@ -115,7 +118,7 @@ class LidarDualProposal:
             (np.arange(nx) + 0.5) * self.cell_ratio, (np.arange(ny) + 0.5) * self.cell_ratio,
             self.free, self.resolution, self.table, out=out, beams=self.beams,
         )
-        return out.reshape(nx * ny, DUAL_HEADINGS)[self.cells]
+        return out
 
     def draw(
         self, n: int, ranges: NDArray[np.float64], exponent: float, rng: np.random.Generator
@@ -123,16 +126,15 @@ class LidarDualProposal:
         """``n`` dual poses ``(n, 3)`` (m, m, rad) for the scan ``ranges`` ``(M,)`` and their
         log-density ``(n,)`` under the proposal; ``exponent`` is the filter's likelihood
         exponent. Draws ``4 n`` uniforms from ``rng``."""
-        scores = self.scores(ranges).ravel()
-        scores *= exponent * self.n_beams / self.beams.shape[0]
-        prob = np.exp(scores - scores.max())
-        prob *= (1.0 - DEFENSIVE_SHARE) / prob.sum()
-        prob += DEFENSIVE_SHARE / prob.shape[0]
-        cdf = np.cumsum(prob)
+        cdf = self.scores(ranges).reshape(-1)  # overwritten by the proposal's CDF
+        n_free_poses = self.cells.shape[0] * DUAL_HEADINGS
+        proposal_cdf(cdf, exponent * self.n_beams / self.beams.shape[0],
+                     DEFENSIVE_SHARE / n_free_poses)
         u = rng.random((n, 4))
-        pick = np.minimum(np.searchsorted(cdf, u[:, 0] * cdf[-1], side="right"),
-                          prob.shape[0] - 1)
-        cell = self.cells[pick // DUAL_HEADINGS]
+        total = cdf[-1]
+        pick = np.minimum(np.searchsorted(cdf, u[:, 0] * total, side="right"), cdf.shape[0] - 1)
+        prob = (cdf[pick] - np.where(pick > 0, cdf[pick - 1], 0.0)) / total
+        cell = pick // DUAL_HEADINGS
         ny = self.free.shape[1]
         gx = (cell // ny + u[:, 1]) * self.cell_ratio  # map grid coordinates (cells)
         gy = (cell % ny + u[:, 2]) * self.cell_ratio
@@ -143,9 +145,35 @@ class LidarDualProposal:
         poses[:, 1] = oy + self.resolution * (s * gx + c * gy)
         bin_width = 2.0 * np.pi / DUAL_HEADINGS
         poses[:, 2] = wrap_angle(yaw + (pick % DUAL_HEADINGS + u[:, 3]) * bin_width)
-        log_q = np.log(prob[pick] / cdf[-1]) - math.log(self.cell_side**2 * bin_width)
+        log_q = np.log(prob) - math.log(self.cell_side**2 * bin_width)
         return poses, log_q
 
+
+@numba.njit(cache=True, nogil=True)
+def proposal_cdf(scores: NDArray, scale: float, uniform_mass: float) -> None:
+    """Overwrite the lattice's scores ``(N,)`` (``-inf`` off the free poses) with the
+    unnormalized CDF of ``(1 - eps) softmax(scale x score) + uniform_mass`` over the free
+    poses, ``eps`` the uniform share (``uniform_mass`` times the free poses); the last entry is
+    the total, 1 up to rounding. A pose ``SOFTMAX_CUTOFF`` nats below the best gets the uniform
+    mass alone (its softmax share is below e^-40 of the best's)."""
+    top = -np.inf
+    n_free = 0
+    for i in range(scores.shape[0]):
+        if scores[i] > -np.inf:
+            top = max(top, scale * scores[i])
+            n_free += 1
+    total = 0.0
+    for i in range(scores.shape[0]):
+        v = scale * scores[i] - top
+        scores[i] = math.exp(v) if v > -SOFTMAX_CUTOFF else (0.0 if v > -np.inf else -1.0)
+        if scores[i] > 0.0:
+            total += scores[i]
+    softmax_mass = (1.0 - uniform_mass * n_free) / total
+    running = 0.0
+    for i in range(scores.shape[0]):
+        if scores[i] >= 0.0:  # a free pose
+            running += softmax_mass * scores[i] + uniform_mass
+        scores[i] = running
 
 def update_with_scan(
     belief: MCLBelief,

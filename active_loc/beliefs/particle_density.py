@@ -1,23 +1,25 @@
 """A weighted particle set as a density: the kernel density estimate of mixture MCL.
 
 Mixture MCL weights a pose ``x`` drawn from the measurement by the predicted belief's density
-``bel_bar(x)``, which a particle set gives only through a kernel density estimate:
-``bel_bar(x) = sum_k w_k K_h(x - p_k)``, ``K_h`` a Gaussian of standard deviations ``h``
-``(3,)``, the heading residual wrapped to ``[-pi, pi)``. The default bandwidth is Silverman's
+``bel_bar(x)``, which a particle set gives only through a density estimate:
+``bel_bar(x) = sum_k w_k K_h(x - p_k)``, ``K_h`` a product of Gaussians of standard deviations
+``h`` ``(3,)``, wrapped around the circle in heading. The default bandwidth is Silverman's
 rule of thumb per dimension, ``h_d = sigma_d (4 / (d + 2) / n_eff)^(1 / (d + 4))`` with d = 3
 and the weights' effective sample size, floored at ``min_bandwidth`` (a converged set has a
 spread near 0).
 
-The kernel is the Gaussian truncated to the ball of ``TRUNCATION`` bandwidths (where it has
-fallen to 3.4e-4 of its peak) and renormalized, so that its support is compact and the sum
-is exact over the particles near a query: particles are sorted into cells of
-``TRUNCATION / 2`` bandwidths, and a query visits the 5 x 5 x 5 cells around its own, each
-found by binary search in the sorted cell keys. A query costs 125 searches plus the particles
-near it, not K (measured on 2 cores, 500 queries: 12 ms on 5000 particles spread uniformly
-over 20 m x 20 m, where Silverman's bandwidth is 1.7 m and a query reaches a tenth of the
-set; 2.8 ms on 500 particles of a converged set). The density integrates to 1 when
-``TRUNCATION h_theta <= pi`` (a wider heading kernel overlaps itself around the circle;
-mixture MCL normalizes its weights anyway).
+The sum is evaluated binned (Wand 1994): the weights are spread linearly onto a grid of one
+bandwidth per cell, convolved along each axis with Gaussian taps out to :data:`TRUNCATION`
+bandwidths (circularly in heading), and read at a query by trilinear interpolation. Binning
+and interpolation each add about a sixth of a cell's square to the kernel's variance, so the
+taps are narrowed by that much. The result is a density (it integrates to 1) close to the
+exact sum, and its cost does not depend on how far a kernel reaches: ``K`` to bin, the grid's
+cells times the taps to convolve, 8 reads a query. Where a wide set with a narrow bandwidth
+would need more than :data:`MAX_CELLS` cells, or the heading more than
+:data:`MAX_HEADING_CELLS`, the cells grow, and the estimate is smoother than the sum.
+Measured on 2 cores, 5000 particles spread over 20 m x 20 m and 1000 queries: 0.2 ms binned,
+18 ms summed over every particle within reach (Silverman's bandwidth there is 1.7 m, so that
+every query reaches most of the set).
 """
 
 from __future__ import annotations
@@ -28,16 +30,15 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-#: kernel support, in bandwidths
+#: the kernel's support, in bandwidths
 TRUNCATION = 4.0
-#: cells per axis of the search window on either side of the query's cell
-_REACH = 2
-_LOG_NORM_1D = -0.5 * math.log(2.0 * math.pi)
-#: log of the standard 3-D Gaussian's mass inside the ball of radius TRUNCATION
-_LOG_BALL_MASS = math.log(
-    math.erf(TRUNCATION / math.sqrt(2.0))
-    - math.sqrt(2.0 / math.pi) * TRUNCATION * math.exp(-0.5 * TRUNCATION**2)
-)
+#: the grid's cell side, in bandwidths
+GRID_STEP = 1.0
+#: the most grid cells (x cells x y cells x heading cells)
+MAX_CELLS = 1 << 16
+#: the fewest and the most heading cells
+MIN_HEADING_CELLS = 8
+MAX_HEADING_CELLS = 64
 
 
 def silverman_bandwidth(
@@ -59,86 +60,127 @@ def silverman_bandwidth(
 
 
 @numba.njit(cache=True, nogil=True)
-def _cell(value: float, origin: float, size: float) -> int:
-    return math.floor((value - origin) / size)
+def _taps(bandwidth: float, step: float, reach: int) -> NDArray:
+    """The Gaussian's ``2 reach + 1`` taps at ``step`` spacing, summing to 1."""
+    taps = np.empty(2 * reach + 1)
+    for i in range(2 * reach + 1):
+        e = (i - reach) * step / bandwidth
+        taps[i] = math.exp(-0.5 * e * e)
+    return taps / taps.sum()
 
 
 @numba.njit(cache=True, nogil=True)
-def _key(ix: int, iy: int, ih: int, ny: int, nh: int) -> int:
-    return (ix * ny + iy) * nh + ih
+def _narrowed(bandwidth: float, cell: float) -> float:
+    """The taps' bandwidth that, with the variance ``cell^2 / 3`` that binning and reading
+    add, makes the kernel's: ``sqrt(h^2 - cell^2 / 3)``, at least a quarter cell."""
+    return math.sqrt(max(bandwidth * bandwidth - cell * cell / 3.0, (cell / 4.0) ** 2))
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _split(u: float) -> tuple[int, float]:
+    """The grid node below ``u`` and the fraction of the way to the next."""
+    i = math.floor(u)
+    return int(i), u - i
 
 
 @numba.njit(cache=True, nogil=True)
-def kde_log_density_kernel(
+def binned_kde_kernel(
     particles: NDArray, weights: NDArray, bandwidth: NDArray, queries: NDArray, out: NDArray
 ) -> None:
     """``log bel_bar`` ``(Q,)`` at ``queries`` ``(Q, 3)`` (module docstring); particles
-    ``(K, 3)`` with headings in ``[-pi, pi)``, weights ``(K,)`` summing to 1."""
+    ``(K, 3)`` with headings in ``[-pi, pi)``, weights ``(K,)`` summing to 1, ``bandwidth``
+    ``(3,)`` with a heading bandwidth of at most pi."""
     k = particles.shape[0]
-    size = np.empty(3)
-    for d in range(3):
-        size[d] = bandwidth[d] * TRUNCATION / _REACH
-    x0 = np.inf
-    y0 = np.inf
-    x1 = -np.inf
-    y1 = -np.inf
+    x0 = y0 = np.inf
+    x1 = y1 = -np.inf
     for i in range(k):
         x0 = min(x0, particles[i, 0])
-        y0 = min(y0, particles[i, 1])
         x1 = max(x1, particles[i, 0])
+        y0 = min(y0, particles[i, 1])
         y1 = max(y1, particles[i, 1])
-    nx = _cell(x1, x0, size[0]) + 1
-    ny = _cell(y1, y0, size[1]) + 1
-    # heading cells wrap: at least one, and no more than fit in a turn
-    nh = max(1, math.floor(2.0 * math.pi / size[2]))
-    h_size = 2.0 * math.pi / nh
-    keys = np.empty(k, dtype=np.int64)
-    for i in range(k):
-        ih = min(_cell(particles[i, 2], -math.pi, h_size), nh - 1)
-        keys[i] = _key(_cell(particles[i, 0], x0, size[0]), _cell(particles[i, 1], y0, size[1]),
-                       ih, ny, nh)
-    order = np.argsort(keys)
-    sorted_keys = keys[order]
-    log_norm = (3.0 * _LOG_NORM_1D - math.log(bandwidth[0] * bandwidth[1] * bandwidth[2])
-                - _LOG_BALL_MASS)
-    cutoff = TRUNCATION * TRUNCATION
-    reach_h = min(_REACH, nh // 2)
+    nh = min(MAX_HEADING_CELLS,
+             max(MIN_HEADING_CELLS, math.floor(2.0 * math.pi / (GRID_STEP * bandwidth[2]))))
+    dh = 2.0 * math.pi / nh
+    dx = GRID_STEP * bandwidth[0]
+    dy = GRID_STEP * bandwidth[1]
+    while True:  # grow the cells until the grid fits
+        rx = math.ceil(TRUNCATION * bandwidth[0] / dx)
+        ry = math.ceil(TRUNCATION * bandwidth[1] / dy)
+        nx = int((x1 - x0) / dx) + 2 + 2 * rx
+        ny = int((y1 - y0) / dy) + 2 + 2 * ry
+        if nx * ny * nh <= MAX_CELLS:
+            break
+        grow = 1.05 * math.sqrt(nx * ny * nh / MAX_CELLS)
+        dx *= grow
+        dy *= grow
+    rh = math.ceil(TRUNCATION * bandwidth[2] / dh)
+    gx = x0 - rx * dx  # the grid's first node; nodes at gx + i dx, and heading -pi + (j + 1/2) dh
+    gy = y0 - ry * dy
+    mass = np.zeros((nx, ny, nh))
+    for i in range(k):  # linear binning
+        ix, fx = _split((particles[i, 0] - gx) / dx)
+        iy, fy = _split((particles[i, 1] - gy) / dy)
+        ih, fh = _split((particles[i, 2] + math.pi) / dh - 0.5)
+        h0 = ih % nh
+        h1 = (ih + 1) % nh
+        for a in range(2):
+            wa = weights[i] * (fx if a else 1.0 - fx)
+            for b in range(2):
+                wb = wa * (fy if b else 1.0 - fy)
+                mass[ix + a, iy + b, h0] += wb * (1.0 - fh)
+                mass[ix + a, iy + b, h1] += wb * fh
+    taps_x = _taps(_narrowed(bandwidth[0], dx), dx, rx)
+    taps_y = _taps(_narrowed(bandwidth[1], dy), dy, ry)
+    taps_h = _taps(_narrowed(bandwidth[2], dh), dh, rh)
+    smooth = np.zeros((nx, ny, nh))
+    for i in range(nx):
+        for a in range(max(-rx, -i), min(rx, nx - 1 - i) + 1):
+            c = taps_x[a + rx]
+            for j in range(ny):
+                for m in range(nh):
+                    smooth[i, j, m] += c * mass[i + a, j, m]
+    mass[:] = 0.0
+    for i in range(nx):
+        for j in range(ny):
+            for b in range(max(-ry, -j), min(ry, ny - 1 - j) + 1):
+                c = taps_y[b + ry]
+                for m in range(nh):
+                    mass[i, j, m] += c * smooth[i, j + b, m]
+    for i in range(nx):
+        for j in range(ny):
+            for m in range(nh):
+                acc = 0.0
+                for c in range(-rh, rh + 1):  # around the circle
+                    acc += taps_h[c + rh] * mass[i, j, (m + c) % nh]
+                smooth[i, j, m] = acc
+    log_cell = math.log(dx * dy * dh)
     for q in range(queries.shape[0]):
-        qx = queries[q, 0]
-        qy = queries[q, 1]
-        qh = queries[q, 2]
-        cx = _cell(qx, x0, size[0])
-        cy = _cell(qy, y0, size[1])
-        ch = min(_cell(qh - 2.0 * math.pi * math.floor((qh + math.pi) / (2.0 * math.pi)),
-                       -math.pi, h_size), nh - 1)
-        total = 0.0
-        for ix in range(max(cx - _REACH, 0), min(cx + _REACH, nx - 1) + 1):
-            for iy in range(max(cy - _REACH, 0), min(cy + _REACH, ny - 1) + 1):
-                for dh in range(-reach_h, reach_h + 1):
-                    if nh > 1 and 2 * reach_h + 1 > nh and dh == reach_h and nh % 2 == 0:
-                        continue  # the window wrapped onto itself: visit each cell once
-                    ih = (ch + dh) % nh
-                    key = _key(ix, iy, ih, ny, nh)
-                    j = np.searchsorted(sorted_keys, key)
-                    while j < k and sorted_keys[j] == key:
-                        p = order[j]
-                        j += 1
-                        ex = (qx - particles[p, 0]) / bandwidth[0]
-                        ey = (qy - particles[p, 1]) / bandwidth[1]
-                        r = qh - particles[p, 2]
-                        r = r - 2.0 * math.pi * math.floor((r + math.pi) / (2.0 * math.pi))
-                        eh = r / bandwidth[2]
-                        s = ex * ex + ey * ey + eh * eh
-                        if s <= cutoff:
-                            total += weights[p] * math.exp(-0.5 * s)
-        out[q] = math.log(total) + log_norm if total > 0.0 else -np.inf
+        u = (queries[q, 0] - gx) / dx
+        v = (queries[q, 1] - gy) / dy
+        if not (0.0 <= u < nx - 1 and 0.0 <= v < ny - 1):
+            out[q] = -np.inf
+            continue
+        ix, fx = _split(u)
+        iy, fy = _split(v)
+        ih, fh = _split((queries[q, 2] + math.pi) / dh - 0.5)
+        h0 = ih % nh
+        h1 = (ih + 1) % nh
+        acc = 0.0
+        for a in range(2):
+            wa = fx if a else 1.0 - fx
+            for b in range(2):
+                wb = wa * (fy if b else 1.0 - fy)
+                acc += wb * ((1.0 - fh) * smooth[ix + a, iy + b, h0]
+                             + fh * smooth[ix + a, iy + b, h1])
+        out[q] = math.log(acc) - log_cell if acc > 0.0 else -np.inf
 
 
 def kde_log_density(
     particles: ArrayLike, weights: ArrayLike, bandwidth: ArrayLike, queries: ArrayLike
 ) -> NDArray[np.float64]:
     """``log bel_bar(x)`` ``(Q,)`` (per m^2 rad) of the weighted set ``(K, 3)``, ``(K,)`` with
-    the Gaussian kernel of ``bandwidth`` ``(3,)`` (m, m, rad), at ``queries`` ``(Q, 3)``."""
+    the Gaussian kernel of ``bandwidth`` ``(3,)`` (m, m, rad), at ``queries`` ``(Q, 3)``,
+    binned (module docstring)."""
     p = np.ascontiguousarray(particles, dtype=np.float64).reshape(-1, 3).copy()
     w = np.ascontiguousarray(weights, dtype=np.float64).reshape(-1)
     h = np.ascontiguousarray(bandwidth, dtype=np.float64).reshape(-1)
@@ -153,5 +195,5 @@ def kde_log_density(
         raise ValueError("kde_log_density: particles, weights and queries must be finite")
     p[:, 2] = (p[:, 2] + np.pi) % (2.0 * np.pi) - np.pi
     out = np.empty(qs.shape[0])
-    kde_log_density_kernel(p, w, np.minimum(h, np.array([np.inf, np.inf, np.pi])), qs, out)
+    binned_kde_kernel(p, w, np.minimum(h, np.array([np.inf, np.inf, np.pi])), qs, out)
     return out

@@ -1,31 +1,23 @@
-"""The truncated, cell-sorted kernel density of a particle set against the full sum."""
+"""The binned kernel density of a particle set against the full sum over its particles."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from active_loc.beliefs.particle_density import (
-    _LOG_BALL_MASS,
-    TRUNCATION,
-    kde_log_density,
-    silverman_bandwidth,
-)
+from active_loc.beliefs.particle_density import kde_log_density, silverman_bandwidth
 
 
 def brute_force_log_density(particles, weights, bandwidth, queries) -> np.ndarray:
-    """The sum over every particle of the truncated Gaussian kernel, the heading residual
-    wrapped."""
+    """The sum over every particle of the Gaussian product kernel, wrapped in heading."""
     r = queries[:, None, :] - particles[None, :, :]
-    r[..., 2] = (r[..., 2] + np.pi) % (2 * np.pi) - np.pi
-    s = ((r / bandwidth) ** 2).sum(-1)
-    log_k = -0.5 * s - 1.5 * np.log(2 * np.pi) - np.log(np.prod(bandwidth)) - _LOG_BALL_MASS
-    log_k[s > TRUNCATION**2] = -np.inf
-    terms = log_k + np.log(weights)[None, :]
-    top = terms.max(axis=1, keepdims=True)
-    with np.errstate(invalid="ignore"):  # no particle in reach: -inf - -inf
-        out = (top + np.log(np.exp(terms - top).sum(axis=1, keepdims=True)))[:, 0]
-    return np.where(np.isfinite(top[:, 0]), out, -np.inf)
+    r[..., :2] /= bandwidth[:2]
+    wrapped = sum(np.exp(-0.5 * ((r[..., 2] + 2 * np.pi * j) / bandwidth[2]) ** 2)
+                  for j in range(-3, 4))
+    kernel = np.exp(-0.5 * (r[..., 0] ** 2 + r[..., 1] ** 2)) * wrapped
+    kernel /= (2 * np.pi) ** 1.5 * np.prod(bandwidth)
+    with np.errstate(divide="ignore"):
+        return np.log(kernel @ weights)
 
 
 def _mixed_set(rng: np.random.Generator, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -40,8 +32,11 @@ def _mixed_set(rng: np.random.Generator, k: int) -> tuple[np.ndarray, np.ndarray
     return particles, weights / weights.sum()
 
 
-@pytest.mark.parametrize("bandwidth", [(0.3, 0.3, 0.1), (1.5, 1.0, 0.8), (0.05, 0.05, 4.0)])
-def test_the_truncated_density_equals_the_full_sum(bandwidth) -> None:
+@pytest.mark.parametrize("bandwidth", [(0.6, 0.6, 0.3), (1.5, 1.0, 0.8), (0.3, 0.3, 4.0)])
+def test_the_binned_density_is_close_to_the_full_sum(bandwidth) -> None:
+    """Where the density is more than a thousandth of its peak, the binned estimate is within
+    20% of the exact sum (90th percentile: how a mode sits between the grid nodes matters),
+    and not biased by more than 3%."""
     rng = np.random.default_rng(0)
     particles, weights = _mixed_set(rng, 3000)
     queries = np.vstack([
@@ -50,12 +45,14 @@ def test_the_truncated_density_equals_the_full_sum(bandwidth) -> None:
                          rng.uniform(-4, 4, 200)]),
     ])
     h = np.array(bandwidth)
-    fast = kde_log_density(particles, weights, h, queries)
+    binned = kde_log_density(particles, weights, h, queries)
     exact = brute_force_log_density(particles, weights, np.minimum(h, np.pi), queries)
-    np.testing.assert_array_equal(fast == -np.inf, exact == -np.inf)
-    reached = exact > -np.inf
+    reached = exact > exact.max() + np.log(1e-3)
     assert reached.sum() > 100
-    np.testing.assert_allclose(fast[reached], exact[reached], rtol=0, atol=1e-9)
+    assert np.all(np.isfinite(binned[reached]))
+    error = binned[reached] - exact[reached]
+    assert np.quantile(np.abs(error), 0.9) < 0.2
+    assert abs(np.mean(np.exp(error)) - 1.0) < 0.03
 
 
 def test_the_density_integrates_to_one() -> None:

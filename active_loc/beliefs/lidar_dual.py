@@ -175,6 +175,7 @@ def proposal_cdf(scores: NDArray, scale: float, uniform_mass: float) -> None:
             running += softmax_mass * scores[i] + uniform_mass
         scores[i] = running
 
+
 def update_with_scan(
     belief: MCLBelief,
     ranges: NDArray[np.float64],

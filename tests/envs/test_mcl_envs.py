@@ -91,13 +91,16 @@ def test_symmetric_arena_leaves_passive_localization_ambiguous() -> None:
     assert near_truth >= 2 and near_mirror >= 2
 
 
-@pytest.mark.parametrize("grace", [10, 0])
-def test_kidnapping_happens_once_inside_its_window_and_success_waits_for_it(grace) -> None:
+@pytest.mark.parametrize(("grace", "proposal"), [(10, "mixture"), (0, "motion")])
+def test_kidnapping_happens_once_inside_its_window_and_success_waits_for_it(
+    grace, proposal
+) -> None:
     """Until ``kidnap_grace`` steps after the kidnapping, no success and no termination,
-    however confident the belief; the belief is confident on the kidnapping step itself (it
-    cannot know yet), which is why the grace exists."""
+    however confident the belief. A belief can be confident on the kidnapping step itself (it
+    cannot know yet), which is why the grace exists: plain MCL's is in some of these episodes
+    (the mixture's, whose dual poses keep it wider, is not in the first eight seeds)."""
     env = gym.make("ActiveLoc/GridMCLKidnapped-v0", action_type="discrete", kidnap_grace=grace,
-                   terminate_when_localized=False)
+                   terminate_when_localized=False, proposal=proposal)
     config = env.unwrapped.config
     lo, hi = (round(f * config.horizon) for f in config.kidnap_window)
     confident_when_kidnapped = 0

@@ -61,7 +61,7 @@ LANDMARK_UNKNOWN: MappingProxyType[str, Any] = MappingProxyType(
 )
 
 #: Global localization on landmark maps: the belief starts uniform over the map, mixture MCL
-#: with random-particle injection, a 180-degree range-bearing sensor of 8 m. The sensor is
+#: with recovery (augmented MCL's rate), a 180-degree range-bearing sensor of 8 m. The sensor is
 #: precise (0.1 m, 2 degrees), so the posterior after the first scan is a sliver of the pose
 #: space: plain MCL with a few thousand particles puts none of them in it, one takes all the
 #: weight and the filter converges, confidently, on a pose up to a metre off (it needed 100000

@@ -60,7 +60,6 @@ class LidarDualProposal:
 
     Attributes:
         free: ``(X, Y)`` bool, the lattice cells holding free map cells.
-        cells: ``(F,)`` flat indices ``ix * Y + iy`` of the free lattice cells.
         cell_ratio: lattice cell side / map resolution (a whole number).
         resolution: the map's resolution (m).
         origin: the map's origin ``(x, y, yaw)`` (m, m, rad).
@@ -72,7 +71,6 @@ class LidarDualProposal:
     """
 
     free: NDArray[np.bool_]
-    cells: NDArray[np.int64]
     cell_ratio: int
     resolution: float
     origin: tuple[float, float, float]
@@ -95,7 +93,7 @@ class LidarDualProposal:
         free.setflags(write=False)
         n_beams = sensor.beam_angles.shape[0]
         return cls(
-            free=free, cells=np.flatnonzero(free.ravel()), cell_ratio=ratio,
+            free=free, cell_ratio=ratio,
             resolution=float(grid.resolution),
             origin=tuple(float(v) for v in grid.origin),  # type: ignore[arg-type]
             table=padded_table(log_table, off_map_log_probability(sensor)),
@@ -127,9 +125,7 @@ class LidarDualProposal:
         log-density ``(n,)`` under the proposal; ``exponent`` is the filter's likelihood
         exponent. Draws ``4 n`` uniforms from ``rng``."""
         cdf = self.scores(ranges).reshape(-1)  # overwritten by the proposal's CDF
-        n_free_poses = self.cells.shape[0] * DUAL_HEADINGS
-        proposal_cdf(cdf, exponent * self.n_beams / self.beams.shape[0],
-                     DEFENSIVE_SHARE / n_free_poses)
+        proposal_cdf(cdf, exponent * self.n_beams / self.beams.shape[0], DEFENSIVE_SHARE)
         u = rng.random((n, 4))
         total = cdf[-1]
         pick = np.minimum(np.searchsorted(cdf, u[:, 0] * total, side="right"), cdf.shape[0] - 1)
@@ -150,18 +146,19 @@ class LidarDualProposal:
 
 
 @numba.njit(cache=True, nogil=True)
-def proposal_cdf(scores: NDArray, scale: float, uniform_mass: float) -> None:
+def proposal_cdf(scores: NDArray, scale: float, uniform_share: float) -> None:
     """Overwrite the lattice's scores ``(N,)`` (``-inf`` off the free poses) with the
-    unnormalized CDF of ``(1 - eps) softmax(scale x score) + uniform_mass`` over the free
-    poses, ``eps`` the uniform share (``uniform_mass`` times the free poses); the last entry is
-    the total, 1 up to rounding. A pose ``SOFTMAX_CUTOFF`` nats below the best gets the uniform
-    mass alone (its softmax share is below e^-40 of the best's)."""
+    unnormalized CDF of ``(1 - eps) softmax(scale x score) + eps / F`` over the F free poses,
+    ``eps`` = ``uniform_share``; the last entry is the total, 1 up to rounding. A pose
+    ``SOFTMAX_CUTOFF`` nats below the best gets ``eps / F`` alone (its softmax share is below
+    e^-40 of the best's)."""
     top = -np.inf
     n_free = 0
     for i in range(scores.shape[0]):
         if scores[i] > -np.inf:
             top = max(top, scale * scores[i])
             n_free += 1
+    uniform_mass = uniform_share / n_free
     total = 0.0
     for i in range(scores.shape[0]):
         v = scale * scores[i] - top

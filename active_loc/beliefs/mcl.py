@@ -1288,9 +1288,9 @@ class MCLBelief:
             rows = mixed_lw[:n] if i == 0 else mixed_lw[n:]
             term = lw - (0.0 if i == 0 else total) + math.log(share / live)
             np.logaddexp(rows, term, out=rows)
-        mixed = self._buffer("mixed", (self.n_particles + n_dual, 3))
-        if mixed.shape[0] < n + n_dual:
-            mixed = self._buffers["mixed"] = np.empty((self.n_particles + n_dual, 3))
+        # K_max rows and the dual poses of K_max particles (n <= K_max, so n_dual is no more)
+        most_dual = max(1, round(self.mixture_share * self.n_particles))
+        mixed = self._buffer("mixed", (self.n_particles + most_dual, 3))
         mixed[:n] = particles
         mixed[n : n + n_dual] = poses
         self._resample(key, mixed[: n + n_dual], mixed_lw, recovery=recovery)

@@ -14,6 +14,19 @@ from typing import Any
 import numpy as np
 
 from active_loc.beliefs.mcl import PROPOSALS
+from active_loc.envs.field_checks import (
+    check_bool_fields,
+    check_choice,
+    check_integer,
+    check_memory,
+    check_number,
+    check_positive,
+    check_std,
+    check_stds,
+    integers,
+    is_finite_number,
+    numbers,
+)
 from active_loc.maps import LandmarkMap, OccupancyGrid
 from active_loc.maps.pool import MAX_MAP_POOL
 from active_loc.sensors.detections import MAX_CLUTTER_RATE
@@ -30,6 +43,27 @@ ACTION_TYPES = ("continuous", "discrete")
 OBSERVATIONS = ("belief",)
 REWARDS = ("info_gain", "neg_entropy", "logdet", "trace")
 STARTS = ("random", "fixed")
+_CHOICES = {
+    "belief": BELIEFS, "ekf_backend": EKF_BACKENDS, "sensor": SENSORS,
+    "action_type": ACTION_TYPES, "observation": OBSERVATIONS, "reward": REWARDS,
+    "start": STARTS, "initial_belief": INITIAL_BELIEFS, "lidar_model": LIDAR_MODELS,
+    "resampling": RESAMPLING, "proposal": PROPOSALS,
+}
+
+# bounds of the sizes (each also counts towards field_checks.MEMORY_BOUND_BYTES)
+MAX_MAP_SIDE_M = 10_000.0  # map_size, each side (m)
+MAX_LANDMARKS = 100_000  # max_landmarks
+MAX_BEAMS = 10_000  # n_beams
+MAX_GRID_HEADINGS = 3600  # grid_headings
+MAX_PEOPLE = 1000  # dynamic_obstacles count
+MIN_GRID_CELL_M, MAX_GRID_CELL_M = 0.01, 100.0  # grid_cell_size (m)
+GENERATOR_RESOLUTION_M = 0.1  # the map generators' cell side
+# bytes per unit of the memory estimate: a particle (pose, weight, draws, resampling and
+# mixture buffers), a map cell (values, distance field, likelihood table, free-space index),
+# a grid belief pose (probability, scratch, cell pose)
+PARTICLE_BYTES = 256
+MAP_CELL_BYTES = 48
+GRID_POSE_BYTES = 64
 
 
 @dataclass(frozen=True)
@@ -157,16 +191,21 @@ class LocalizationConfig:
     horizon: int = 200  # episode length the kidnap window refers to (the registered limit)
 
     def __post_init__(self) -> None:
-        _one_of("belief", self.belief, BELIEFS)
-        _one_of("ekf_backend", self.ekf_backend, EKF_BACKENDS)
-        _one_of("sensor", self.sensor, SENSORS)
-        _one_of("action_type", self.action_type, ACTION_TYPES)
-        _one_of("observation", self.observation, OBSERVATIONS)
-        _one_of("reward", self.reward, REWARDS)
-        _one_of("start", self.start, STARTS)
-        _one_of("initial_belief", self.initial_belief, INITIAL_BELIEFS)
-        _one_of("lidar_model", self.lidar_model, LIDAR_MODELS)
-        _one_of("resampling", self.resampling, RESAMPLING)
+        for name in ("belief", "ekf_backend", "sensor", "action_type", "observation", "reward",
+                     "start", "initial_belief", "lidar_model", "resampling", "proposal"):
+            check_choice(name, getattr(self, name), _CHOICES[name])
+        check_bool_fields(self, tuple(f.name for f in fields(self) if f.type == "bool"))
+        for f in fields(self):
+            if f.type == "float":
+                check_number(f.name, getattr(self, f.name))
+        self._check_map()
+        self._check_combinations()
+        self._check_sensor()
+        self._check_robot_and_filter()
+        self._check_episode()
+        check_memory(memory_parts(self, *self._known_map_cells()))
+
+    def _check_map(self) -> None:
         if isinstance(self.map, str):
             if self.uses_grid:
                 if self.map not in GRID_MAPS and not self.map.endswith((".yaml", ".yml")):
@@ -175,7 +214,7 @@ class LocalizationConfig:
                         "an OccupancyGrid or a path to a ROS map YAML file"
                     )
             else:
-                _one_of("map", self.map, LANDMARK_MAPS)
+                check_choice("map", self.map, LANDMARK_MAPS)
         elif self.uses_grid:
             if not isinstance(self.map, OccupancyGrid):
                 raise ValueError(
@@ -183,22 +222,60 @@ class LocalizationConfig:
                     f"path to a ROS map YAML, got {type(self.map).__name__}"
                 )
         elif not isinstance(self.map, LandmarkMap):
-            positions = np.asarray(self.map, dtype=np.float64)
+            try:
+                positions = np.asarray(self.map, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise ValueError(
+                    "map must be 'random', 'textbook', a LandmarkMap or a non-empty (N, 2) "
+                    f"array of landmark positions, got a {type(self.map).__name__} that is not "
+                    "numeric"
+                ) from None
             if positions.ndim != 2 or positions.shape[1] != 2 or positions.shape[0] == 0:
                 raise ValueError(
                     "map must be 'random', 'textbook', a LandmarkMap or a non-empty (N, 2) "
                     f"array of landmark positions, got shape {positions.shape}"
                 )
+            if not np.isfinite(positions).all():
+                raise ValueError("map landmark positions must be finite, got NaN or inf")
+            if positions.shape[0] > MAX_LANDMARKS:
+                raise ValueError(
+                    f"map holds {positions.shape[0]} landmarks, more than {MAX_LANDMARKS}"
+                )
+        width, height = numbers("map_size (width m, height m)", self.map_size, 2)
+        if min(width, height) <= 2.0 or max(width, height) > MAX_MAP_SIDE_M:
+            raise ValueError(f"map_size must be (width, height) in (2, {MAX_MAP_SIDE_M:g}] m "
+                             f"each, got {self.map_size}")
+        check_integer("max_landmarks", self.max_landmarks, 1, MAX_LANDMARKS)
+        low, high = integers("n_landmarks (low, high)", self.n_landmarks, 2)
+        if not 1 <= low <= high <= self.max_landmarks:
+            raise ValueError(
+                f"n_landmarks must satisfy 1 <= low <= high <= max_landmarks="
+                f"{self.max_landmarks}, got {self.n_landmarks}"
+            )
         if self.map_pool is not None:
-            _integer("map_pool", self.map_pool, 1)
-            if self.map_pool > MAX_MAP_POOL:
-                raise ValueError(f"map_pool must be None or an integer in [1, {MAX_MAP_POOL}], "
-                                 f"got {self.map_pool}")
+            check_integer("map_pool", self.map_pool, 1, MAX_MAP_POOL)
             if not self.generated_map:
                 raise ValueError(
                     f"map_pool={self.map_pool} pools generated maps: it needs map='random' "
                     f"(landmarks) or a generator of {GRID_MAPS} (lidar), got map={self.map!r}"
                 )
+        x, y, _ = numbers("start_pose (x m, y m, theta rad)", self.start_pose, 3)
+        if self.start == "fixed":
+            self._check_start_pose(x, y)
+
+    def _check_start_pose(self, x: float, y: float) -> None:
+        """A fixed start must be a free pose of the map, where the map is known now: a given
+        map, or a generated map's box. The cores check the rest (a map file, the textbook
+        map, each generated grid) with :func:`check_start_pose` once they hold the map."""
+        if isinstance(self.map, (OccupancyGrid, LandmarkMap)):
+            check_start_pose(self.map, (x, y))
+        elif self.generated_map:
+            width, height = self.map_size
+            if not (0.0 <= x <= width and 0.0 <= y <= height):
+                raise ValueError(f"start_pose ({x}, {y}) is outside the map of map_size "
+                                 f"{self.map_size} (m, from (0, 0))")
+
+    def _check_combinations(self) -> None:
         if self.belief == "ekf" and (self.sensor == "lidar" or self.initial_belief == "uniform"):
             raise ValueError(
                 "belief='ekf' tracks a Gaussian with landmark sensors; lidar and "
@@ -209,12 +286,17 @@ class LocalizationConfig:
                 f"belief='grid' runs on grid maps: it needs sensor='lidar', got "
                 f"sensor={self.sensor!r}"
             )
-        _positive("grid_cell_size", self.grid_cell_size)
-        _integer("grid_headings", self.grid_headings, 1)
-        if not (_is_finite_number(self.miss_probability) and 0 <= self.miss_probability < 1):
+        if self.proposal == "mixture" and self.belief != "mcl":
+            raise ValueError(f"proposal='mixture' is mixture MCL: it needs belief='mcl', got "
+                             f"belief={self.belief!r}")
+        if self.kidnap and self.belief != "mcl":
+            raise ValueError("kidnap=True needs belief='mcl' (the EKF cannot recover from it)")
+
+    def _check_sensor(self) -> None:
+        if not (is_finite_number(self.miss_probability) and 0 <= self.miss_probability < 1):
             raise ValueError(f"miss_probability must be in [0, 1), got {self.miss_probability!r}")
         clutter = self.clutter_rate
-        if not (_is_finite_number(clutter) and 0 <= clutter <= MAX_CLUTTER_RATE):
+        if not (is_finite_number(clutter) and 0 <= clutter <= MAX_CLUTTER_RATE):
             raise ValueError(
                 f"clutter_rate must be in [0, {MAX_CLUTTER_RATE}] false detections per scan, "
                 f"got {self.clutter_rate!r}"
@@ -228,22 +310,69 @@ class LocalizationConfig:
                 "(identical-looking landmarks)"
             )
         if self.association_gate is not None and not (
-            _is_finite_number(self.association_gate) and 0 < self.association_gate <= 1
+            is_finite_number(self.association_gate) and 0 < self.association_gate <= 1
         ):
             raise ValueError(
                 f"association_gate must be None or in (0, 1], got {self.association_gate!r}"
             )
-        for f in fields(self):
-            if f.type == "float":
-                _number(f.name, getattr(self, f.name))
-        _integer("n_beams", self.n_beams, 1)
-        _integer("n_particles", self.n_particles, 1)
-        _integer("min_particles", self.min_particles, 1)
+        check_integer("n_beams", self.n_beams, 1, MAX_BEAMS)
+        mixture = numbers("lidar_mixture (hit, short, max, random)", self.lidar_mixture, 4)
+        if min(mixture) < 0 or abs(sum(mixture) - 1.0) > 1e-6:
+            raise ValueError(
+                f"lidar_mixture must be 4 weights (hit, short, max, random) >= 0 summing to 1, "
+                f"got {self.lidar_mixture}"
+            )
+        for name in ("lidar_sigma_hit", "lidar_noise_std", "range_std", "bearing_std",
+                     "position_std"):
+            check_std(name, getattr(self, name))
+        check_positive("lidar_lambda_short", self.lidar_lambda_short)
+        check_integer("lidar_range_bins", self.lidar_range_bins, 0)
+        if 0 < self.lidar_range_bins < 4:
+            raise ValueError(f"lidar_range_bins must be 0 (off) or >= 4, got "
+                             f"{self.lidar_range_bins}")
+        if self.lidar_beam_skip is not None:
+            skip = numbers("lidar_beam_skip (distance m, threshold, error threshold)",
+                           self.lidar_beam_skip, 3)
+            if not (skip[0] > 0 and 0 <= skip[1] <= 1 and 0 <= skip[2] <= 1):
+                raise ValueError(
+                    f"lidar_beam_skip must be None or (distance m > 0, threshold in [0, 1], "
+                    f"error threshold in [0, 1]), got {self.lidar_beam_skip!r}"
+                )
+        if self.dynamic_obstacles is not None:
+            people = self.dynamic_obstacles
+            if not isinstance(people, (tuple, list)) or len(people) != 3:
+                people = (None, None, None)
+            count_ok = isinstance(people[0], (int, np.integer)) and not isinstance(
+                people[0], bool) and 0 <= people[0] <= MAX_PEOPLE
+            if not count_ok or not all(is_finite_number(v) for v in people[1:]) or not (
+                people[1] >= 0 and people[2] > 0
+            ):
+                raise ValueError(
+                    f"dynamic_obstacles must be None or (count in [0, {MAX_PEOPLE}], speed "
+                    f"m/s >= 0, radius m > 0), got {self.dynamic_obstacles!r}"
+                )
+            if people[0] > 0 and not self.uses_grid:
+                raise ValueError("dynamic_obstacles needs a grid map (sensor='lidar')")
+        if not (0 < self.fov <= 2 * math.pi):
+            raise ValueError(f"fov must be in (0, 2*pi] rad, got {self.fov}")
+        if not self.max_range > 0:
+            raise ValueError(f"max_range must be > 0 m (inf allowed), got {self.max_range}")
+
+    def _check_robot_and_filter(self) -> None:
+        check_positive("dt", self.dt)
+        check_positive("v_max", self.v_max, allow_zero=True)
+        if not (math.isfinite(self.v_min) and self.v_min <= self.v_max):
+            raise ValueError(f"v_min must be finite and <= v_max={self.v_max}, got {self.v_min}")
+        check_positive("omega_max", self.omega_max, allow_zero=True)
+        check_stds("motion_noise_std", self.motion_noise_std, allow_zero=True)
+        check_stds("initial_error_std", self.initial_error_std, allow_zero=True)
+        check_stds("initial_belief_std", self.initial_belief_std, allow_zero=False)
+        check_integer("n_particles", self.n_particles, 1)
+        check_integer("min_particles", self.min_particles, 1)
         if self.kld and self.min_particles > self.n_particles:
             raise ValueError(
                 f"min_particles={self.min_particles} must be <= n_particles={self.n_particles}"
             )
-        _integer("horizon", self.horizon, 1)
         if not 0 < self.recovery_alpha_slow < self.recovery_alpha_fast <= 1:
             raise ValueError(
                 "recovery rates must satisfy 0 < recovery_alpha_slow < recovery_alpha_fast <= 1, "
@@ -257,86 +386,17 @@ class LocalizationConfig:
             raise ValueError(
                 f"resample_threshold must be in (0, 1], got {self.resample_threshold}"
             )
-        lo, hi = self.kidnap_window
-        if not 0 <= lo <= hi <= 1:
-            raise ValueError(
-                f"kidnap_window must satisfy 0 <= lo <= hi <= 1, got {self.kidnap_window}"
-            )
-        _integer("kidnap_grace", self.kidnap_grace, 0)
-        _one_of("proposal", self.proposal, PROPOSALS)
-        _number("mixture_share", self.mixture_share)
         if not 0.0 < self.mixture_share < 1.0:
             raise ValueError(f"mixture_share must be in (0, 1), got {self.mixture_share}")
-        if self.proposal == "mixture" and self.belief != "mcl":
-            raise ValueError(f"proposal='mixture' is mixture MCL: it needs belief='mcl', got "
-                             f"belief={self.belief!r}")
-        if self.kidnap and self.belief != "mcl":
-            raise ValueError("kidnap=True needs belief='mcl' (the EKF cannot recover from it)")
-        mixture = self.lidar_mixture
-        if len(mixture) != 4 or min(mixture) < 0 or abs(sum(mixture) - 1.0) > 1e-6:
-            raise ValueError(
-                f"lidar_mixture must be 4 weights (hit, short, max, random) >= 0 summing to 1, "
-                f"got {mixture}"
-            )
-        _positive("lidar_sigma_hit", self.lidar_sigma_hit)
-        _positive("lidar_noise_std", self.lidar_noise_std)
-        _positive("lidar_lambda_short", self.lidar_lambda_short)
-        _integer("lidar_range_bins", self.lidar_range_bins, 0)
-        if self.lidar_beam_skip is not None:
-            skip = tuple(self.lidar_beam_skip)
-            if len(skip) != 3 or not all(_is_finite_number(v) for v in skip) or not (
-                skip[0] > 0 and 0 <= skip[1] <= 1 and 0 <= skip[2] <= 1
-            ):
-                raise ValueError(
-                    f"lidar_beam_skip must be None or (distance m > 0, threshold in [0, 1], "
-                    f"error threshold in [0, 1]), got {self.lidar_beam_skip!r}"
-                )
-        if self.dynamic_obstacles is not None:
-            people = tuple(self.dynamic_obstacles)
-            if len(people) != 3 or isinstance(people[0], bool) or not isinstance(
-                people[0], (int, np.integer)
-            ) or people[0] < 0 or not all(_is_finite_number(v) for v in people[1:]) or not (
-                people[1] >= 0 and people[2] > 0
-            ):
-                raise ValueError(
-                    f"dynamic_obstacles must be None or (count >= 0, speed m/s >= 0, "
-                    f"radius m > 0), got {self.dynamic_obstacles!r}"
-                )
-            if people[0] > 0 and not self.uses_grid:
-                raise ValueError("dynamic_obstacles needs a grid map (sensor='lidar')")
-        if 0 < self.lidar_range_bins < 4:
-            raise ValueError(f"lidar_range_bins must be 0 (off) or >= 4, got "
-                             f"{self.lidar_range_bins}")
-        _positive("dt", self.dt)
-        _positive("v_max", self.v_max, allow_zero=True)
-        if not (math.isfinite(self.v_min) and self.v_min <= self.v_max):
-            raise ValueError(f"v_min must be finite and <= v_max={self.v_max}, got {self.v_min}")
-        _positive("omega_max", self.omega_max, allow_zero=True)
-        _stds("motion_noise_std", self.motion_noise_std, allow_zero=True)
-        _stds("initial_error_std", self.initial_error_std, allow_zero=True)
-        _stds("initial_belief_std", self.initial_belief_std, allow_zero=False)
-        _positive("range_std", self.range_std)
-        _positive("bearing_std", self.bearing_std)
-        _positive("position_std", self.position_std)
-        if not (0 < self.fov <= 2 * math.pi):
-            raise ValueError(f"fov must be in (0, 2*pi] rad, got {self.fov}")
-        if not self.max_range > 0:
-            raise ValueError(f"max_range must be > 0 m (inf allowed), got {self.max_range}")
-        if int(self.max_landmarks) < 1:
-            raise ValueError(f"max_landmarks must be >= 1, got {self.max_landmarks}")
-        low, high = self.n_landmarks
-        if not 1 <= low <= high <= self.max_landmarks:
-            raise ValueError(
-                f"n_landmarks must satisfy 1 <= low <= high <= max_landmarks="
-                f"{self.max_landmarks}, got {self.n_landmarks}"
-            )
-        if len(self.map_size) != 2 or min(self.map_size) <= 2.0:
-            raise ValueError(
-                f"map_size must be (width, height) above 2 m each, got {self.map_size}"
-            )
-        _positive("step_cost", self.step_cost, allow_zero=True)
-        _positive("collision_penalty", self.collision_penalty, allow_zero=True)
-        _positive("outcome_reward", self.outcome_reward, allow_zero=True)
+        check_positive("grid_cell_size", self.grid_cell_size)
+        if not MIN_GRID_CELL_M <= self.grid_cell_size <= MAX_GRID_CELL_M:
+            raise ValueError(f"grid_cell_size must be in [{MIN_GRID_CELL_M}, {MAX_GRID_CELL_M}] "
+                             f"m, got {self.grid_cell_size}")
+        check_integer("grid_headings", self.grid_headings, 1, MAX_GRID_HEADINGS)
+
+    def _check_episode(self) -> None:
+        for name in ("step_cost", "collision_penalty", "outcome_reward"):
+            check_positive(name, getattr(self, name), allow_zero=True)
         if self.outcome_reward > 0 and not self.terminate_when_localized:
             raise ValueError(
                 "outcome_reward is paid on the step the belief becomes confident and ends the "
@@ -348,11 +408,26 @@ class LocalizationConfig:
             "success_position_tol",
             "success_heading_tol",
         ):
-            _positive(name, getattr(self, name))
-        if len(self.start_pose) != 3 or not all(math.isfinite(v) for v in self.start_pose):
+            check_positive(name, getattr(self, name))
+        check_integer("horizon", self.horizon, 1)
+        lo, hi = numbers("kidnap_window (low, high)", self.kidnap_window, 2)
+        if not 0 <= lo <= hi <= 1:
             raise ValueError(
-                f"start_pose must be three finite numbers (x, y, theta), got {self.start_pose}"
+                f"kidnap_window must satisfy 0 <= lo <= hi <= 1, got {self.kidnap_window}"
             )
+        check_integer("kidnap_grace", self.kidnap_grace, 0)
+
+    def _known_map_cells(self) -> tuple[int, float]:
+        """The grid map's cell count and resolution (m) where the config knows them (a
+        generated map at the generators' resolution, or a given grid); ``(0, 0.1)`` for a
+        landmark map or a map file, whose size is checked when it is read."""
+        if isinstance(self.map, OccupancyGrid):
+            return int(self.map.values.size), float(self.map.resolution)
+        if self.uses_grid and self.generated_map:
+            width, height = self.map_size
+            return math.ceil(width / GENERATOR_RESOLUTION_M) * math.ceil(
+                height / GENERATOR_RESOLUTION_M), GENERATOR_RESOLUTION_M
+        return 0, GENERATOR_RESOLUTION_M
 
     @property
     def generated_map(self) -> bool:
@@ -371,36 +446,32 @@ class LocalizationConfig:
         return tuple(f.name for f in fields(cls))
 
 
-def _one_of(name: str, value: object, allowed: tuple[str, ...]) -> None:
-    if value not in allowed:
-        raise ValueError(f"{name}={value!r} is not one of {allowed}")
+def check_start_pose(lmap: LandmarkMap | OccupancyGrid, position: tuple[float, float]) -> None:
+    """A fixed start ``(x, y)`` (m) must lie inside ``lmap``, and on a grid in a free cell."""
+    x, y = position
+    x_min, y_min, x_max, y_max = lmap.bounds
+    if not (x_min <= x <= x_max and y_min <= y <= y_max):
+        where = "outside the map"
+    elif isinstance(lmap, OccupancyGrid) and not bool(lmap.is_free(np.array([[x, y]]))[0]):
+        where = "in an occupied or unknown cell of the map"
+    else:
+        return
+    raise ValueError(f"start_pose ({x}, {y}) is {where}; the map spans x in [{x_min}, {x_max}], "
+                     f"y in [{y_min}, {y_max}] m")
 
 
-def _number(name: str, value: object) -> None:
-    if not isinstance(value, (int, float, np.integer, np.floating)) or isinstance(value, bool):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-
-
-def _positive(name: str, value: float, allow_zero: bool = False) -> None:
-    _number(name, value)
-    ok = math.isfinite(value) and (value >= 0 if allow_zero else value > 0)
-    if not ok:
-        bound = ">= 0" if allow_zero else "> 0"
-        raise ValueError(f"{name} must be a finite number {bound}, got {value}")
-
-
-def _is_finite_number(value: object) -> bool:
-    return (isinstance(value, (int, float, np.integer, np.floating))
-            and not isinstance(value, bool) and math.isfinite(float(value)))
-
-
-def _integer(name: str, value: object, minimum: int) -> None:
-    if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
-
-
-def _stds(name: str, values: tuple[float, ...], allow_zero: bool) -> None:
-    if len(values) != 3:
-        raise ValueError(f"{name} must have 3 entries (x m, y m, theta rad), got {values}")
-    for v in values:
-        _positive(name, float(v), allow_zero=allow_zero)
+def memory_parts(cfg: LocalizationConfig, map_cells: int, resolution: float) -> dict[str, float]:
+    """The largest arrays an env of ``cfg`` allocates (what -> bytes), for a grid map of
+    ``map_cells`` cells of ``resolution`` m (0 cells for a landmark map)."""
+    k = cfg.n_particles if cfg.belief == "mcl" else 1
+    parts = {
+        "n_particles": k * PARTICLE_BYTES,
+        "n_beams": cfg.n_beams * 8.0 * (k if cfg.uses_grid else 1),
+        "max_landmarks": cfg.max_landmarks * 8.0 * (k + 16),
+        "the grid map": map_cells * (MAP_CELL_BYTES + 2 * cfg.lidar_range_bins),
+    }
+    if cfg.belief == "grid" and map_cells:
+        belief_cells = map_cells * (resolution / cfg.grid_cell_size) ** 2
+        parts["grid_cell_size and grid_headings"] = (
+            belief_cells * cfg.grid_headings * GRID_POSE_BYTES)
+    return parts

@@ -39,7 +39,7 @@ from active_loc.beliefs.ekf import EKFBelief, ekf_predict, ekf_update
 from active_loc.beliefs.ekf_filterpy import FilterpyEKFBelief
 from active_loc.beliefs.entropy import LOG_2PIE_3, det3
 from active_loc.envs.actions import ControlLimits
-from active_loc.envs.config import LocalizationConfig
+from active_loc.envs.config import LocalizationConfig, check_start_pose
 from active_loc.envs.metrics import belief_metrics
 from active_loc.envs.observations import belief_observation_size, write_belief_observation
 from active_loc.envs.outcome import StepOutcome
@@ -534,6 +534,8 @@ class LandmarkCore(StateViews):
         n = config.max_landmarks
         draws_maps = isinstance(config.map, str) and config.map == "random"
         self.fixed_map = None if draws_maps else fixed_landmark_map(config)
+        if self.fixed_map is not None and config.start == "fixed":
+            check_start_pose(self.fixed_map, config.start_pose[:2])
         if self.fixed_map is not None and self.fixed_map.n_landmarks > n:
             raise ValueError(
                 f"the map has {self.fixed_map.n_landmarks} landmarks but max_landmarks={n}; "

@@ -28,6 +28,7 @@ from active_loc.envs.outcome import RewardSettings, step_info
 from active_loc.maps.maze import (
     TEST_SET_SEED,
     MazeSet,
+    max_test_set_count,
     maze_test_set,
     random_maze,
     random_start,
@@ -91,10 +92,12 @@ class MazeConfig:
                 f"terminate_when_localized must be a bool, got {self.terminate_when_localized!r}"
             )
         test_set = self.test_set
+        most = max_test_set_count(self.size)
         if test_set is not None and not isinstance(test_set, MazeSet):
-            if not _is_int(test_set) or test_set < 1:
+            if not _is_int(test_set) or not 1 <= test_set <= most:
                 raise ValueError(
-                    f"test_set must be a MazeSet, an integer count >= 1 or None, got {test_set!r}"
+                    f"test_set must be a MazeSet, an integer count in [1, {most}] (of the "
+                    f"standard {self.size} x {self.size} set) or None, got {test_set!r}"
                 )
         if isinstance(test_set, MazeSet) and test_set.size != self.size:
             raise ValueError(
@@ -105,8 +108,9 @@ class MazeConfig:
             if not _is_int(index) or index < 0:
                 raise ValueError(f"maze_index must be an integer >= 0 or None, got {index!r}")
             count = _set_length(test_set)
-            if count is not None and index >= count:
-                raise ValueError(f"maze_index must be in [0, {count}), got {index}")
+            if index >= (most if count is None else count):
+                raise ValueError(f"maze_index must be in [0, {most if count is None else count}),"
+                                 f" got {index}")
 
 
 def _is_int(value: Any) -> bool:
@@ -474,8 +478,11 @@ class MazeEnv(gym.Env):
         """The maze, start pose and test-set index of a new episode."""
         index = None if options is None else options.get("maze_index")
         if index is not None:
-            if not _is_int(index) or index < 0:
-                raise ValueError(f"options['maze_index'] must be an integer >= 0, got {index!r}")
+            most = max_test_set_count(self.size)
+            if not _is_int(index) or not 0 <= index < most:
+                raise ValueError(
+                    f"options['maze_index'] must be an integer in [0, {most}), got {index!r}"
+                )
             if self.test_set is None or index >= len(self.test_set):
                 if self.config.test_set is not None:
                     raise ValueError(

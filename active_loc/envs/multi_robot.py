@@ -66,7 +66,19 @@ from active_loc.beliefs.ekf import EKFBelief
 from active_loc.beliefs.entropy import gaussian_entropy
 from active_loc.beliefs.mcl import FreeSpace, MCLBelief
 from active_loc.envs.actions import ControlLimits, action_space, check_action
-from active_loc.envs.config import _integer, _one_of, _positive, _stds
+from active_loc.envs.config import MAX_LANDMARKS, MAX_MAP_SIDE_M, PARTICLE_BYTES
+from active_loc.envs.field_checks import (
+    check_bool,
+    check_bool_fields,
+    check_choice,
+    check_integer,
+    check_memory,
+    check_positive,
+    check_std,
+    check_stds,
+    integers,
+    numbers,
+)
 from active_loc.envs.metrics import belief_metrics
 from active_loc.envs.multi_robot_fusion import (
     MultiRobotRenderer,
@@ -94,6 +106,7 @@ INITIAL_BELIEFS = ("gaussian", "wide", "uniform")
 #: ``initial_belief="wide"``: std of the start error and of the initial belief (m, m, rad)
 WIDE_STD = (2.0, 2.0, 0.6)
 ROBOT_SLOT = 4
+MAX_ROBOTS = 1000  # n_robots
 
 
 @dataclass(frozen=True)
@@ -163,12 +176,12 @@ class MultiRobotConfig:
     initial_beliefs: tuple[str, ...] = field(init=False)  # one per robot (derived)
 
     def __post_init__(self) -> None:
-        _integer("n_robots", self.n_robots, 1)
-        _one_of("belief", self.belief, ("ekf", "mcl"))
-        _one_of("action_type", self.action_type, ("continuous", "discrete"))
-        _one_of("ci_criterion", self.ci_criterion, ("det", "trace"))
+        check_integer("n_robots", self.n_robots, 1, MAX_ROBOTS)
+        check_choice("belief", self.belief, ("ekf", "mcl"))
+        check_choice("action_type", self.action_type, ("continuous", "discrete"))
+        check_choice("ci_criterion", self.ci_criterion, ("det", "trace"))
         if isinstance(self.map, str):
-            _one_of("map", self.map, MAPS)
+            check_choice("map", self.map, MAPS)
         elif not isinstance(self.map, LandmarkMap):
             positions = np.asarray(self.map, dtype=np.float64)
             if positions.ndim != 2 or positions.shape[1] != 2 or positions.shape[0] == 0:
@@ -180,9 +193,12 @@ class MultiRobotConfig:
             raise ValueError(f"initial_belief must be one name or {self.n_robots} (one per "
                              f"robot), got {self.initial_belief!r}")
         for kind in kinds:
-            _one_of("initial_belief", kind, INITIAL_BELIEFS)
+            check_choice("initial_belief", kind, INITIAL_BELIEFS)
         object.__setattr__(self, "initial_beliefs", kinds)
+        check_bool_fields(self, ("fuse_detections", "fusion_sender_localized", "team_reward"))
         known = self.known_correspondences
+        if known is not None:
+            check_bool("known_correspondences", known)
         if known is None:
             known = not (isinstance(self.map, str) and self.map == "symmetric")
             object.__setattr__(self, "known_correspondences", known)
@@ -190,18 +206,19 @@ class MultiRobotConfig:
             raise ValueError("belief='ekf' tracks a Gaussian with known correspondences: "
                              "known_correspondences=False and initial_belief='uniform' need "
                              "belief='mcl'")
-        for name in ("dt", "range_std", "bearing_std", "detection_range_std",
-                     "detection_bearing_std", "step_cost", "collision_penalty",
+        for name in ("range_std", "bearing_std", "detection_range_std", "detection_bearing_std"):
+            check_std(name, getattr(self, name))
+        for name in ("dt", "step_cost", "collision_penalty",
                      "localized_position_std", "localized_heading_std", "success_position_tol",
                      "success_heading_tol", "v_max", "omega_max"):
             zero_ok = name in ("step_cost", "collision_penalty", "v_max", "omega_max")
-            _positive(name, getattr(self, name), allow_zero=zero_ok)
+            check_positive(name, getattr(self, name), allow_zero=zero_ok)
         if not (math.isfinite(self.v_min) and self.v_min <= self.v_max):
             raise ValueError(f"v_min must be finite and <= v_max={self.v_max}, got {self.v_min}")
-        _stds("motion_noise_std", self.motion_noise_std, allow_zero=True)
-        _stds("initial_error_std", self.initial_error_std, allow_zero=True)
-        _stds("initial_belief_std", self.initial_belief_std, allow_zero=False)
-        _stds("fusion_bandwidth", self.fusion_bandwidth, allow_zero=False)
+        check_stds("motion_noise_std", self.motion_noise_std, allow_zero=True)
+        check_stds("initial_error_std", self.initial_error_std, allow_zero=True)
+        check_stds("initial_belief_std", self.initial_belief_std, allow_zero=False)
+        check_stds("fusion_bandwidth", self.fusion_bandwidth, allow_zero=False)
         for name in ("fov", "detection_fov"):
             value = getattr(self, name)
             ok = isinstance(value, (int, float)) and 0 < value <= 2 * math.pi
@@ -211,16 +228,21 @@ class MultiRobotConfig:
             value = getattr(self, name)
             if value is not None and not (isinstance(value, (int, float)) and value > 0):
                 raise ValueError(f"{name} must be > 0 m (inf allowed), got {value!r}")
-        _integer("max_landmarks", self.max_landmarks, 1)
-        low, high = self.n_landmarks
+        check_integer("max_landmarks", self.max_landmarks, 1, MAX_LANDMARKS)
+        low, high = integers("n_landmarks (low, high)", self.n_landmarks, 2)
         if not 1 <= low <= high <= self.max_landmarks:
             raise ValueError(f"n_landmarks must satisfy 1 <= low <= high <= max_landmarks="
                              f"{self.max_landmarks}, got {self.n_landmarks}")
-        if len(self.map_size) != 2 or min(self.map_size) <= 2.0:
-            raise ValueError(f"map_size must be (width, height) above 2 m each, got "
-                             f"{self.map_size}")
+        if min(numbers("map_size (width m, height m)", self.map_size, 2)) <= 2.0 or max(
+                self.map_size) > MAX_MAP_SIDE_M:
+            raise ValueError(f"map_size must be (width, height) in (2, {MAX_MAP_SIDE_M:g}] m "
+                             f"each, got {self.map_size}")
         for name in ("n_particles", "fusion_interval", "fusion_samples", "max_cycles"):
-            _integer(name, getattr(self, name), 1)
+            check_integer(name, getattr(self, name), 1)
+        k = self.n_particles if self.belief == "mcl" else 1
+        check_memory({"n_robots x n_particles": self.n_robots * k * PARTICLE_BYTES,
+                      "fusion_samples": self.n_robots * self.fusion_samples * PARTICLE_BYTES,
+                      "max_landmarks": self.n_robots * self.max_landmarks * 8.0 * (k + 16)})
         if not 0 < self.resample_threshold <= 1:
             raise ValueError(f"resample_threshold must be in (0, 1], got "
                              f"{self.resample_threshold}")

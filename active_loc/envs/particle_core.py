@@ -30,8 +30,9 @@ from active_loc.beliefs.lidar_dual import LidarDualProposal, update_with_scan
 from active_loc.beliefs.mcl import FreeSpace, MCLBelief
 from active_loc.beliefs.particle_stats import ENTROPY_BINS
 from active_loc.envs.actions import ControlLimits
-from active_loc.envs.config import LocalizationConfig
+from active_loc.envs.config import LocalizationConfig, check_start_pose, memory_parts
 from active_loc.envs.crowd import Crowd
+from active_loc.envs.field_checks import check_memory
 from active_loc.envs.landmark_core import (
     B_COUNT,
     B_WALLS,
@@ -152,6 +153,8 @@ class ParticleCore(StateViews):
             self.lidar = self.true_lidar = None
             self.models = build_models(config)
         self.fixed_map = self._fixed_map()
+        if self.fixed_map is not None and config.start == "fixed":
+            check_start_pose(self.fixed_map, config.start_pose[:2])
         self._fixed_data: dict | None = None  # derive_map_data of the fixed map
         self.maps: list[LandmarkMap | OccupancyGrid | None] = [None]
         self.state = np.zeros((1, STATE_SIZE))
@@ -194,6 +197,8 @@ class ParticleCore(StateViews):
         if isinstance(lmap, LandmarkMap):
             row[X_BOX + B_COUNT] = lmap.n_landmarks
         if cfg.start == "fixed":
+            if self.fixed_map is None:  # a generated map: each one may block the start
+                check_start_pose(lmap, cfg.start_pose[:2])
             row[X_POSE : X_POSE + 3] = cfg.start_pose
         else:
             row[X_POSE : X_POSE + 3] = self._random_free_pose(rng)
@@ -258,7 +263,9 @@ class ParticleCore(StateViews):
         path = Path(cfg.map)
         if not path.is_file():
             raise ValueError(f"map={cfg.map!r}: no such map file")
-        return OccupancyGrid.load(path, unknown_reflects=cfg.unknown_reflects)
+        grid = OccupancyGrid.load(path, unknown_reflects=cfg.unknown_reflects)
+        check_memory(memory_parts(cfg, grid.values.size, grid.resolution))
+        return grid
 
     def _episode_map(self, rng: np.random.Generator) -> tuple[LandmarkMap | OccupancyGrid, dict]:
         """The map of a new episode and what the core derives from it: the fixed map, one of

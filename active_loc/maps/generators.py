@@ -487,6 +487,7 @@ def maze_map(
     cell_size_m: float = 1.0,
     resolution: float = 0.1,
     wall_thickness_m: float = 0.1,
+    size_m: tuple[float, float] | None = None,
 ) -> OccupancyGrid:
     """A perfect maze (recursive backtracker): exactly one path between any two maze cells.
 
@@ -501,16 +502,25 @@ def maze_map(
         cell_size_m: pitch of the maze lattice (m), walls included.
         resolution: cell side (m).
         wall_thickness_m: wall thickness (m); at least one grid cell.
+        size_m: ``(width, height)`` (m) the maze must fit in, as the other generators take
+            it; given, it replaces ``n_cells`` by as many maze cells as fit along each axis.
     """
     res = _check_resolution(resolution, "maze_map")
+    pitch = _cells(cell_size_m, res, "maze_map: cell_size_m", minimum=2)
+    w = _cells(wall_thickness_m, res, "maze_map: wall_thickness_m")
+    if size_m is not None:
+        fits = [(_cells(side, res, f"maze_map: size_m[{axis}]") - w) // pitch
+                for axis, side in enumerate(size_m)]
+        if min(fits) < 1:
+            raise ValueError(f"maze_map: size_m {size_m} cannot hold one maze cell of "
+                             f"{cell_size_m} m")
+        n_cells = (int(fits[0]), int(fits[1]))
     if isinstance(n_cells, tuple):
         mx, my = (int(v) for v in n_cells)
     else:
         mx = my = int(n_cells)
     if mx < 1 or my < 1:
         raise ValueError(f"maze_map: n_cells must be >= 1 along both axes, got {n_cells}")
-    pitch = _cells(cell_size_m, res, "maze_map: cell_size_m", minimum=2)
-    w = _cells(wall_thickness_m, res, "maze_map: wall_thickness_m")
     if w >= pitch:
         raise ValueError(
             f"maze_map: wall_thickness_m ({wall_thickness_m}) leaves no passage in cells of "
@@ -571,6 +581,7 @@ GENERATORS: dict[str, Callable[..., OccupancyGrid]] = {
     "symmetric_rooms": functools.partial(symmetric_arena, kind="rooms"),
     "marked_rooms": functools.partial(symmetric_arena, kind="rooms", marker_m=0.4),
     "pillars": functools.partial(symmetric_arena, kind="pillars"),
-    "maze": maze_map,
+    # 2 m maze cells (1.9 m passages) leave a lidar robot room to turn and to see down them
+    "maze": functools.partial(maze_map, cell_size_m=2.0),
 }
 """Map generators by name; each is callable as ``fn(rng)`` (and takes its keyword arguments)."""

@@ -32,6 +32,7 @@ excluded, as the paper's test data (1000 per size).
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 import numba
@@ -54,6 +55,12 @@ HEADING_STEPS = np.array([[1, 0], [0, 1], [-1, 0], [0, -1]], dtype=np.int64)
 HEADING_STEPS.setflags(write=False)
 
 _MAX_ATTEMPTS_PER_MAZE = 200
+#: the most entries a generated test set may hold (at n = 21, 10**5 entries take about 6 s
+#: and 44 MB)
+MAX_TEST_SET_COUNT = 100_000
+#: draws in a row without a new (maze, start) pair after which a size is taken to have no more
+#: (small mazes have few: at n = 7 about 13 000)
+_STALL_DRAWS = 5000
 
 
 @numba.njit(cache=True, nogil=True)
@@ -262,15 +269,44 @@ def maze_test_set(n: int, count: int, seed: int) -> MazeSet:
     same list. Results are cached (the set is immutable).
 
     Raises:
-        ValueError: ``n`` is not an odd integer >= 5, ``count`` < 1, or there are fewer than
-            ``count`` distinct pairs to be found.
+        ValueError: ``n`` is not an odd integer >= 5, ``count`` is not in
+            ``[1, MAX_TEST_SET_COUNT]``, or there are fewer than ``count`` distinct pairs to be
+            found (:data:`_STALL_DRAWS` draws in a row found no new one).
     """
     n = _check_size(n, "maze_test_set")
     if isinstance(count, (bool, np.bool_)) or not isinstance(count, (int, np.integer)):
         raise ValueError(f"maze_test_set: count must be an integer >= 1, got {count!r}")
-    if count < 1:
-        raise ValueError(f"maze_test_set: count must be an integer >= 1, got {count}")
+    if not 1 <= count <= max_test_set_count(n):
+        raise ValueError(
+            f"maze_test_set: count must be an integer in [1, {max_test_set_count(n)}] for "
+            f"{n} x {n} mazes (no more distinct (maze, start) pairs, or the cap "
+            f"{MAX_TEST_SET_COUNT}), got {count}"
+        )
     return _cached_test_set(n, int(count), int(seed))
+
+
+def max_test_set_count(n: int) -> int:
+    """The largest ``count`` :func:`maze_test_set` takes for ``n x n`` mazes:
+    :data:`MAX_TEST_SET_COUNT`, or fewer where the size has fewer distinct (maze, start)
+    pairs (at most 13056 at n = 7)."""
+    return int(min(MAX_TEST_SET_COUNT, _pairs_at_most(_check_size(n, "max_test_set_count"))))
+
+
+def _pairs_at_most(n: int) -> float:
+    """An upper bound on the distinct (maze, start) pairs of ``n x n`` perfect mazes: the
+    spanning trees of the ``m x m`` lattice of maze cells, ``m = (n - 1) / 2`` (the
+    matrix-tree theorem), times the ``2 m^2 - 1`` free cells of each, times 4 headings.
+    Infinite from ``n = 11``, where it exceeds :data:`MAX_TEST_SET_COUNT` a millionfold."""
+    m = (n - 1) // 2
+    if m > 4:
+        return math.inf
+    index = np.arange(m * m).reshape(m, m)
+    laplacian = np.zeros((m * m, m * m))
+    for a, b in ((index[:, :-1], index[:, 1:]), (index[:-1, :], index[1:, :])):
+        laplacian[a.ravel(), b.ravel()] = laplacian[b.ravel(), a.ravel()] = -1.0
+    laplacian[np.diag_indices(m * m)] = -laplacian.sum(axis=1)
+    _, log_trees = np.linalg.slogdet(laplacian[1:, 1:])
+    return float(np.exp(log_trees)) * (2 * m * m - 1) * 4
 
 
 @functools.lru_cache(maxsize=16)
@@ -279,15 +315,15 @@ def _cached_test_set(n: int, count: int, seed: int) -> MazeSet:
     walls = np.empty((count, n, n), dtype=bool)
     starts = np.empty((count, 3), dtype=np.int64)
     seen: set[bytes] = set()
-    k = attempts = 0
-    limit = _MAX_ATTEMPTS_PER_MAZE * count + 1000
+    k = stalled = 0
     while k < count:
-        attempts += 1
-        if attempts > limit:
+        if stalled >= _STALL_DRAWS:
             raise ValueError(
-                f"maze_test_set: found only {k} distinct {n} x {n} (maze, start) pairs in "
-                f"{limit} draws; ask for fewer than {count}"
+                f"maze_test_set: {n} x {n} mazes gave only {k} distinct (maze, start) pairs "
+                f"({_STALL_DRAWS} draws in a row found no new one); ask for fewer than {count} "
+                "or a larger n"
             )
+        stalled += 1
         maze = eller_maze(n, rng)
         start = random_start(maze, rng)
         if is_rotation_symmetric(maze):
@@ -296,6 +332,7 @@ def _cached_test_set(n: int, count: int, seed: int) -> MazeSet:
         if key in seen:
             continue
         seen.add(key)
+        stalled = 0
         walls[k] = maze
         starts[k] = start
         k += 1

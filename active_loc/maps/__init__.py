@@ -3,14 +3,13 @@ IO) and the generators of random occupancy maps."""
 
 from active_loc.maps.generators import GENERATORS, maze_map, rooms_map, symmetric_arena
 from active_loc.maps.landmarks import LandmarkMap, random_landmark_map
+from active_loc.maps.map_image import MapFileError, MapFileNotFoundError
 from active_loc.maps.maze import MazeSet, maze_test_set
 from active_loc.maps.occupancy import (
     FREE,
     OCCUPIED,
     OFF_MAP,
     UNKNOWN,
-    MapFileError,
-    MapFileNotFoundError,
     OccupancyGrid,
     cell_value,
     world_to_grid,

@@ -11,9 +11,8 @@ the bottom-left corner of cell ``(0, 0)``, exactly as map_server's ``origin``. A
 and lies in cell ``(ix, iy) = (floor(gx), floor(gy))``; cell ``(ix, iy)`` spans
 ``[ix, ix + 1) x [iy, iy + 1)`` in grid coordinates and is ``values[iy, ix]``.
 
-Files are map_server's: a YAML description next to a PGM image (see :meth:`OccupancyGrid.load`).
-The YAML subset map_server files use (flat ``key: value`` lines, ``[a, b, c]`` or block lists,
-quoted or plain scalars, comments) is parsed here, so the package needs no YAML library.
+Files are map_server's: a YAML description next to an image (see :meth:`OccupancyGrid.load`
+and :mod:`active_loc.maps.map_image`), read with PyYAML's safe loader.
 
 The numba kernels :func:`world_to_grid` and :func:`cell_value` are the scalar twins of
 :meth:`OccupancyGrid.world_to_cell` and :meth:`OccupancyGrid.value_at`, for ray casting and
@@ -37,6 +36,13 @@ import yaml
 from numpy.typing import ArrayLike, NDArray
 from scipy import ndimage
 
+from active_loc.maps.map_image import (
+    MapFileError,
+    MapImage,
+    read_file_bytes,
+    read_map_image,
+)
+
 FREE, OCCUPIED, UNKNOWN = 0, 100, -1
 """Cell values, as in ROS ``nav_msgs/OccupancyGrid``."""
 
@@ -52,12 +58,6 @@ _ASCII = {"#": OCCUPIED, ".": FREE, "?": UNKNOWN}
 _FAR = float(2**62)
 
 
-class MapFileError(ValueError):
-    """A map file (YAML or PGM) that cannot be read; the message names the file."""
-
-
-class MapFileNotFoundError(MapFileError, FileNotFoundError):
-    """A map file that does not exist; both a :class:`ValueError` and a FileNotFoundError."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -379,45 +379,49 @@ class OccupancyGrid:
 
     @classmethod
     def load(cls, path: str | os.PathLike, unknown_reflects: bool = True) -> OccupancyGrid:
-        """Read a ROS map_server map: the YAML at ``path`` and the PGM image it names.
+        """Read a ROS map_server map: the YAML at ``path`` and the image it names, as nav2's
+        map_server reads them.
 
         YAML fields: ``image`` (relative to the YAML's folder, or absolute), ``resolution``
         (m/cell), ``origin: [x, y, yaw]``, ``occupied_thresh`` and ``free_thresh`` (in [0, 1],
         free < occupied), ``negate`` (0/1, default 0), ``mode`` (``trinary`` default, ``scale``
-        or ``raw``). The image is a binary (P5) or ASCII (P2) PGM with maxval <= 255; its row 0
-        is the TOP of the map.
+        or ``raw``). Numbers may be written as YAML 1.2 reads them (``5e-2``). The YAML is at
+        most :data:`MAX_YAML_BYTES`, without anchors, aliases or nesting beyond origin's list.
 
-        A pixel ``v`` (of maxval ``m``) has occupancy probability ``p = (m - v) / m``, or
-        ``v / m`` with ``negate``; ``p > occupied_thresh`` is OCCUPIED, ``p < free_thresh``
-        FREE, anything else UNKNOWN. ``scale`` uses the same thresholds: map_server would keep
-        the intermediate probabilities, but this grid stores three classes only, so they become
-        UNKNOWN. In ``raw`` mode the pixel (scaled to 0..255) is the occupancy percentage:
-        ``v >= 100 occupied_thresh`` is OCCUPIED, ``v <= 100 free_thresh`` FREE, other values
-        (and anything above 100, such as 255) UNKNOWN; ``negate`` does not apply.
+        The image is a PGM (P5 or P2, 8 or 16 bit, parsed exactly) or any format Pillow reads
+        (PNG, BMP, JPEG, ...); its row 0 is the TOP of the map. See
+        :mod:`active_loc.maps.map_image` for gray, color and alpha, and :func:`_classify` for
+        the thresholds: ``p >= occupied_thresh`` is OCCUPIED and ``p <= free_thresh`` FREE, both
+        inclusive, so that ``free_thresh: 0.0`` keeps pure white free.
 
         Raises:
             MapFileNotFoundError: the YAML or the image does not exist (a ValueError and a
                 FileNotFoundError).
-            MapFileError: a bad YAML field or a malformed PGM (a ValueError naming the file).
+            MapFileError: a bad YAML field, an unreadable or malformed image, or a file over
+                its size limit (a ValueError naming the file).
         """
         yaml_path = Path(path)
         fields = _parse_map_yaml(_read_text(yaml_path), yaml_path)
         image = _require(fields, "image", yaml_path)
         if not isinstance(image, str) or not image.strip():
-            raise MapFileError(f"{yaml_path}: field 'image' must be a file name, got {image!r}")
+            raise MapFileError(
+                f"{yaml_path}: field 'image' must be a file name, got {_short(repr(image))}"
+            )
         resolution = _number(fields, "resolution", yaml_path)
         if not resolution > 0.0:
             raise MapFileError(
                 f"{yaml_path}: field 'resolution' must be > 0 (m per cell), got {resolution}"
             )
         origin = _require(fields, "origin", yaml_path)
+        origin = [_as_number(o) for o in origin] if isinstance(origin, list) else origin
         if not (
             isinstance(origin, list)
             and len(origin) == 3
             and all(_is_number(o) and math.isfinite(o) for o in origin)
         ):
             raise MapFileError(
-                f"{yaml_path}: field 'origin' must be 3 finite numbers [x, y, yaw], got {origin!r}"
+                f"{yaml_path}: field 'origin' must be 3 finite numbers [x, y, yaw], got "
+                f"{_short(repr(origin))}"
             )
         occupied_thresh = _number(fields, "occupied_thresh", yaml_path)
         free_thresh = _number(fields, "free_thresh", yaml_path)
@@ -433,18 +437,21 @@ class OccupancyGrid:
         if isinstance(negate, bool):
             negate = int(negate)
         if negate not in (0, 1) or isinstance(negate, float):
-            raise MapFileError(f"{yaml_path}: field 'negate' must be 0 or 1, got {negate!r}")
+            raise MapFileError(
+                f"{yaml_path}: field 'negate' must be 0 or 1, got {_short(repr(negate))}"
+            )
         mode = fields.get("mode", "trinary")
         if mode not in _MODES:
             raise MapFileError(
-                f"{yaml_path}: field 'mode' must be one of {', '.join(_MODES)}, got {mode!r}"
+                f"{yaml_path}: field 'mode' must be one of {', '.join(_MODES)}, got "
+                f"{_short(repr(mode))}"
             )
 
         image_path = Path(image)
         if not image_path.is_absolute():
             image_path = yaml_path.parent / image_path
-        pixels, maxval = _read_pgm(image_path, yaml_path)
-        values = _classify(pixels, maxval, mode, bool(negate), occupied_thresh, free_thresh)
+        pixels = read_map_image(image_path, yaml_path)
+        values = _classify(pixels, mode, bool(negate), occupied_thresh, free_thresh)
         # image row 0 is the top of the map; grid row 0 is the bottom
         return cls(values[::-1], resolution, tuple(float(o) for o in origin), unknown_reflects)
 
@@ -513,123 +520,23 @@ def cell_value(values: NDArray, gx: float, gy: float) -> int:
     return OFF_MAP
 
 
-# --- PGM -------------------------------------------------------------------------------------
-
-_WHITESPACE = b" \t\r\n\v\f"
-
-
-def _read_bytes(path: Path) -> bytes:
-    try:
-        return path.read_bytes()
-    except FileNotFoundError:
-        raise MapFileNotFoundError(f"{path}: no such file") from None
-    except OSError as err:
-        raise MapFileError(f"{path}: cannot read: {err.strerror or err}") from None
-
-
-def _read_text(path: Path) -> str:
-    try:
-        return _read_bytes(path).decode("utf-8-sig")
-    except UnicodeDecodeError as err:
-        raise MapFileError(f"{path}: not a UTF-8 text file ({err.reason})") from None
-
-
-def _read_pgm(path: Path, yaml_path: Path) -> tuple[NDArray[np.int64], int]:
-    """Pixels ``(height, width)`` and maxval of a P5 or P2 PGM with maxval <= 255."""
-    try:
-        data = _read_bytes(path)
-    except MapFileNotFoundError:
-        raise MapFileNotFoundError(
-            f"{path}: no such file (the image named by {yaml_path})"
-        ) from None
-    magic = data[:2]
-    if magic not in (b"P5", b"P2"):
-        raise MapFileError(
-            f"{path}: not a PGM image: starts with {magic!r}, expected b'P5' (binary) or "
-            f"b'P2' (ASCII); only PGM images are supported"
-        )
-    if len(data) < 3 or data[2:3] not in (*(bytes([b]) for b in _WHITESPACE), b"#"):
-        raise MapFileError(f"{path}: bad PGM header: no whitespace after {magic!r}")
-    pos = 2
-    numbers: list[int] = []
-    names = ("width", "height", "maxval")
-    while len(numbers) < 3:
-        pos = _skip_space_and_comments(data, pos)
-        if pos >= len(data):
-            raise MapFileError(f"{path}: truncated PGM header: {names[len(numbers)]} is missing")
-        start = pos
-        while pos < len(data) and data[pos] not in _WHITESPACE and data[pos] != ord("#"):
-            pos += 1
-        token = data[start:pos]
-        if not token.isdigit():
-            raise MapFileError(
-                f"{path}: bad PGM header: {names[len(numbers)]} is {token[:20]!r}, not a "
-                f"positive integer"
-            )
-        numbers.append(int(token))
-    width, height, maxval = numbers
-    if width == 0 or height == 0:
-        raise MapFileError(f"{path}: bad PGM header: image size {width} x {height} is empty")
-    if not 1 <= maxval <= 255:
-        raise MapFileError(
-            f"{path}: PGM maxval {maxval} is not supported (only 8-bit images, maxval 1..255)"
-        )
-    count = width * height
-    if magic == b"P5":
-        # exactly one whitespace character separates maxval from the raster (a comment may
-        # sit there too, which the netpbm spec allows)
-        if pos >= len(data):
-            raise MapFileError(f"{path}: truncated PGM: no pixel data after the header")
-        if data[pos] == ord("#"):
-            newline = data.find(b"\n", pos)
-            pos = len(data) if newline < 0 else newline + 1
-        else:
-            pos += 1
-        available = len(data) - pos
-        if available < count:
-            raise MapFileError(
-                f"{path}: truncated PGM: {width} x {height} needs {count} bytes of pixel data, "
-                f"found {available}"
-            )
-        pixels = np.frombuffer(data, dtype=np.uint8, count=count, offset=pos)
-        pixels = pixels.astype(np.int64)
-    else:
-        text = re.sub(rb"#[^\n]*", b" ", data[pos:])
-        tokens = text.split()
-        if len(tokens) < count:
-            raise MapFileError(
-                f"{path}: truncated PGM: {width} x {height} needs {count} pixel values, "
-                f"found {len(tokens)}"
-            )
-        if not all(t.isdigit() for t in tokens[:count]):
-            raise MapFileError(f"{path}: bad PGM pixel data: values must be integers")
-        pixels = np.array([int(t) for t in tokens[:count]], dtype=np.int64)
-    if pixels.max() > maxval:
-        raise MapFileError(f"{path}: bad PGM: pixel value {pixels.max()} exceeds maxval {maxval}")
-    return pixels.reshape(height, width), maxval
-
-
-def _skip_space_and_comments(data: bytes, pos: int) -> int:
-    while pos < len(data):
-        if data[pos] in _WHITESPACE:
-            pos += 1
-        elif data[pos] == ord("#"):
-            newline = data.find(b"\n", pos)
-            pos = len(data) if newline < 0 else newline + 1
-        else:
-            break
-    return pos
+# --- map images ------------------------------------------------------------------------------
 
 
 def _classify(
-    pixels: NDArray[np.int64],
-    maxval: int,
-    mode: str,
-    negate: bool,
-    occupied_thresh: float,
-    free_thresh: float,
+    image: MapImage, mode: str, negate: bool, occupied_thresh: float, free_thresh: float
 ) -> NDArray[np.int8]:
-    """Three-class values of an image ``(height, width)`` (image rows, top first)."""
+    """Three-class values ``(height, width)`` (image rows, top first) of a map image.
+
+    ``trinary`` and ``scale``: a pixel ``v`` has occupancy probability ``p = (maxval - v) /
+    maxval`` (``v / maxval`` with ``negate``); ``p >= occupied_thresh`` is OCCUPIED, ``p <=
+    free_thresh`` FREE, anything between UNKNOWN. Scale mode's intermediate probabilities
+    (map_server keeps them as 1..99) are UNKNOWN too: the grid holds three classes.
+    ``raw``: the pixel scaled to 0..255 is the occupancy percentage; ``>= 100 occupied_thresh``
+    is OCCUPIED, ``<= 100 free_thresh`` FREE, other values (and above 100) UNKNOWN; ``negate``
+    does not apply. A pixel below full opacity is UNKNOWN in every mode.
+    """
+    pixels, maxval = image.pixels, image.maxval
     out = np.full(pixels.shape, UNKNOWN, dtype=np.int8)
     if mode == "raw":
         percent = (pixels * 255 + maxval // 2) // maxval  # the 0..255 value map_server reads
@@ -638,16 +545,25 @@ def _classify(
         p = percent / 100.0
         out[valid & (p >= occupied_thresh)] = OCCUPIED
         out[valid & (p <= free_thresh)] = FREE
-        return out
-    # map_server's (255 - v) / 255: exact integer numerators keep threshold ties reproducible
-    p = (pixels if negate else maxval - pixels) / float(maxval)
-    out[p > occupied_thresh] = OCCUPIED
-    out[p < free_thresh] = FREE
+    else:
+        # exact integer numerators keep threshold ties reproducible
+        p = (pixels if negate else maxval - pixels) / float(maxval)
+        out[p >= occupied_thresh] = OCCUPIED
+        out[p <= free_thresh] = FREE  # free_thresh < occupied_thresh: the two never meet
+    if image.opaque is not None:
+        out[~image.opaque] = UNKNOWN
     return out
 
 
-# --- the map_server YAML subset --------------------------------------------------------------
+# --- the map_server YAML ---------------------------------------------------------------------
 
+#: the largest map YAML read (bytes): map_server files are a few hundred
+MAX_YAML_BYTES = 2**20
+#: the deepest nesting a map YAML may hold: the mapping of fields, and origin's list in it
+_MAX_YAML_DEPTH = 2
+#: a YAML 1.2 float or integer, which PyYAML (YAML 1.1) leaves a string when it is written
+#: without a '.' or an exponent sign, as ``5e-2`` or ``1e1``
+_YAML12_NUMBER = re.compile(r"[-+]?(\.[0-9]+|[0-9]+(\.[0-9]*)?)([eE][-+]?[0-9]+)?")
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):
@@ -665,12 +581,42 @@ class _UniqueKeyLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+def _check_yaml_shape(text: str, path: Path) -> None:
+    """Refuse, from the event stream and before building any value, what a map file never
+    holds: anchors and aliases (an alias bomb expands to gigabytes) and nesting deeper than
+    :data:`_MAX_YAML_DEPTH` (a deep list exhausts the recursion of the loader)."""
+    depth = 0
+    try:
+        for event in yaml.parse(text, Loader=yaml.SafeLoader):
+            if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None):
+                raise MapFileError(f"{path}: YAML anchors and aliases are not allowed in a "
+                                   "map file")
+            if isinstance(event, yaml.CollectionStartEvent):
+                depth += 1
+                if depth > _MAX_YAML_DEPTH:
+                    raise MapFileError(
+                        f"{path}: YAML nested deeper than a mapping of fields holding lists"
+                    )
+            elif isinstance(event, yaml.CollectionEndEvent):
+                depth -= 1
+    except yaml.YAMLError as err:
+        raise MapFileError(f"{path}: not valid YAML: {_short(str(err))}") from None
+
+
+def _read_text(path: Path) -> str:
+    try:
+        return read_file_bytes(path, MAX_YAML_BYTES).decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        raise MapFileError(f"{path}: not a UTF-8 text file ({err.reason})") from None
+
+
 def _parse_map_yaml(text: str, path: Path) -> dict[str, Any]:
     """The mapping of a map_server YAML file, read with PyYAML's safe loader."""
+    _check_yaml_shape(text, path)
     try:
         data = yaml.load(text, Loader=_UniqueKeyLoader)  # a SafeLoader subclass: safe
     except yaml.YAMLError as err:
-        raise MapFileError(f"{path}: not valid YAML: {err}") from None
+        raise MapFileError(f"{path}: not valid YAML: {_short(str(err))}") from None
     if data is None:
         raise MapFileError(f"{path}: empty map file: not a YAML mapping of map fields")
     if not isinstance(data, dict):
@@ -680,8 +626,21 @@ def _parse_map_yaml(text: str, path: Path) -> dict[str, Any]:
     return {str(key): value for key, value in data.items()}
 
 
+def _short(text: str, limit: int = 200) -> str:
+    """``text`` cut to ``limit`` characters, so that a message never repeats a huge value."""
+    return text if len(text) <= limit else text[:limit] + f"... ({len(text)} characters)"
+
+
 def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _as_number(value: Any) -> Any:
+    """``value``, or the float a YAML 1.2 reader (ROS's yaml-cpp) sees in it where PyYAML
+    (YAML 1.1) leaves a string such as ``5e-2``."""
+    if isinstance(value, str) and _YAML12_NUMBER.fullmatch(value.strip()):
+        return float(value)
+    return value
 
 
 def _require(fields: dict[str, Any], key: str, path: Path) -> Any:
@@ -691,15 +650,11 @@ def _require(fields: dict[str, Any], key: str, path: Path) -> Any:
 
 
 def _number(fields: dict[str, Any], key: str, path: Path) -> float:
-    value = _require(fields, key, path)
-    if isinstance(value, str):
-        # YAML 1.1 (PyYAML) reads "5e-1" as a string; ROS's yaml-cpp (YAML 1.2) as a number
-        try:
-            value = float(value)
-        except ValueError:
-            pass
+    value = _as_number(_require(fields, key, path))
     if not _is_number(value) or not math.isfinite(value):
-        raise MapFileError(f"{path}: field {key!r} must be a finite number, got {value!r}")
+        raise MapFileError(
+            f"{path}: field {key!r} must be a finite number, got {_short(repr(value))}"
+        )
     return float(value)
 
 

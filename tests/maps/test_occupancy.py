@@ -546,16 +546,16 @@ def test_bad_yaml_names_the_file(tmp_path, case):
 
 
 BAD_PGM = {
-    "png": (b"\x89PNG\r\n\x1a\n" + bytes(20), "not a PGM image"),
-    "ppm": (b"P6\n3 2\n255\n" + bytes(18), "not a PGM image"),
-    "empty": (b"", "not a PGM image"),
+    "png": (b"\x89PNG\r\n\x1a\n" + bytes(20), "not an image map_server reads"),
+    "empty": (b"", "not an image map_server reads"),
     "no_space_after_magic": (b"P53 2\n255\n" + bytes(6), "no whitespace after"),
     "text_width": (b"P5\nthree 2\n255\n" + bytes(6), "width is b'three'"),
     "negative_height": (b"P5\n3 -2\n255\n" + bytes(6), "height is b'-2'"),
     "header_cut": (b"P5\n3 2\n", "maxval is missing"),
     "zero_size": (b"P5\n0 2\n255\n", "is empty"),
-    "maxval_16_bit": (b"P5\n3 2\n65535\n" + bytes(12), "maxval 65535 is not supported"),
-    "maxval_0": (b"P5\n3 2\n0\n" + bytes(6), "maxval 0 is not supported"),
+    "maxval_17_bit": (b"P5\n3 2\n65536\n" + bytes(12), "maxval 65536 is not in 1..65535"),
+    "maxval_0": (b"P5\n3 2\n0\n" + bytes(6), "maxval 0 is not in 1..65535"),
+    "16_bit_cut": (b"P5\n3 2\n65535\n" + bytes(11), "needs 12 bytes of pixel data"),
     "no_data": (b"P5\n3 2\n255", "no pixel data"),
     "truncated_data": (b"P5\n3 2\n255\n" + bytes(5), "needs 6 bytes of pixel data, found 5"),
     "pixel_above_maxval": (b"P5\n3 2\n100\n" + bytes([0, 0, 0, 0, 0, 200]),
@@ -582,7 +582,7 @@ def test_missing_files_name_the_file(tmp_path):
         OccupancyGrid.load(path)
     assert isinstance(info.value, ValueError)  # catchable as either
     assert str(path) in str(info.value)  # and says which YAML asked for it
-    with pytest.raises(MapFileError, match="cannot read"):
+    with pytest.raises(MapFileError, match="not a regular file"):
         OccupancyGrid.load(tmp_path)  # a folder
 
 

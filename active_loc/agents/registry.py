@@ -133,9 +133,11 @@ def make_agent(spec: str, env: gym.Env, seed: int = 0) -> Any:
     wall follower on grid maps, a constant-curvature wanderer on landmark maps. ``"sb3:PATH"``
     loads a saved stable-baselines3 model that takes its most likely action;
     ``"sb3-sample:PATH"`` one that samples its actions (with the agent's seeded Generator for
-    PPO and A2C). A name may carry its agent's constructor parameters in brackets (see
-    :func:`parse_agent_spec`): ``"greedy[n_hypotheses=8]"``, ``"horizon[horizon=1,hold=5]"``;
-    those not given keep their defaults, and ``seed`` is always ``seed``.
+    PPO and A2C); its spaces must be the env's. Model files are trusted input only: loading
+    one unpickles it, which can run code. A name may carry its agent's constructor parameters
+    in brackets (see :func:`parse_agent_spec`): ``"greedy[n_hypotheses=8]"``,
+    ``"horizon[horizon=1,hold=5]"``; those not given keep their defaults, and ``seed`` is
+    always ``seed``.
 
     Raises:
         ValueError: an unknown name or parameter, a value of the wrong type or range, or an
@@ -146,7 +148,9 @@ def make_agent(spec: str, env: gym.Env, seed: int = 0) -> Any:
         from active_loc.agents.sb3 import SB3Agent
 
         kind_of_sb3, path = spec.split(":", 1)
-        return SB3Agent.load(path, deterministic=kind_of_sb3 == "sb3", seed=seed)
+        agent = SB3Agent.load(path, deterministic=kind_of_sb3 == "sb3", seed=seed)
+        agent.check_env(env, name=f"the model {path}")
+        return agent
     requested, params = parse_agent_spec(spec)
     name = requested
     if name == "passive":

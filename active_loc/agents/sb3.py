@@ -8,6 +8,10 @@
 
 stable-baselines3 is imported only when a model is loaded, so importing this module needs
 none of the training dependencies.
+
+Model files are trusted input only. A saved model is a zip of pickled Python objects, and
+loading one runs whatever code it holds: load only models you trained or got from someone you
+trust, as with any pickle.
 """
 
 from __future__ import annotations
@@ -57,29 +61,69 @@ def model_path(path: str | os.PathLike[str]) -> Path:
 
 def run_config_args(model_file: Path) -> dict[str, Any]:
     """The ``args`` recorded in the ``config.json`` of the run the model belongs to: next to
-    the model, or one folder up (checkpoints/, eval/best_model.zip). Empty if there is none."""
+    the model, or one folder up (checkpoints/, eval/best_model.zip). Empty if there is none.
+
+    Raises:
+        ValueError: the ``config.json`` is not JSON, or not an object with an ``args`` object;
+            the message names the file.
+    """
     for folder in (model_file.parent, model_file.parent.parent):
         config = folder / CONFIG_FILE
         if config.is_file():
-            return dict(json.loads(config.read_text()).get("args", {}))
+            try:
+                data = json.loads(config.read_text(encoding="utf-8"))
+            except (UnicodeDecodeError, json.JSONDecodeError) as error:
+                raise ValueError(f"{config}: not a JSON run config: {error}") from None
+            args = data.get("args", {}) if isinstance(data, dict) else None
+            if not isinstance(args, dict):
+                raise ValueError(f"{config}: a run config must be a JSON object whose 'args' "
+                                 "is an object")
+            return dict(args)
     return {}
 
 
+def _config_file(model_file: Path) -> Path | None:
+    for folder in (model_file.parent, model_file.parent.parent):
+        if (folder / CONFIG_FILE).is_file():
+            return folder / CONFIG_FILE
+    return None
+
+
 def config_algorithm(model_file: Path) -> str | None:
-    """The ``algo`` of the model's run (see :func:`run_config_args`), or None."""
+    """The ``algo`` of the model's run (see :func:`run_config_args`), or None when the run
+    records none.
+
+    Raises:
+        ValueError: the run config names an algorithm that is not one of :data:`ALGORITHMS`.
+    """
     algo = run_config_args(model_file).get("algo")
-    return str(algo) if algo in ALGORITHMS else None
+    if algo is None:
+        return None
+    if algo not in ALGORITHMS:
+        raise ValueError(f"{_config_file(model_file)}: algo must be one of "
+                         f"{sorted(ALGORITHMS)}, got {algo!r}")
+    return str(algo)
 
 
 def configured_action_repeat(model_file: Path) -> int:
     """The ``action_repeat`` the model's run trained with (see :func:`run_config_args`); 1 for
-    runs that do not record one."""
-    return int(run_config_args(model_file).get("action_repeat", 1))
+    runs that do not record one.
+
+    Raises:
+        ValueError: the recorded ``action_repeat`` is not an integer >= 1.
+    """
+    repeat = run_config_args(model_file).get("action_repeat", 1)
+    if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
+        raise ValueError(f"{_config_file(model_file)}: action_repeat must be an integer >= 1, "
+                         f"got {repeat!r}")
+    return repeat
 
 
 def load_model(path: str | os.PathLike[str], device: str = "cpu") -> Any:
     """Load a saved model with the class named by its run's ``config.json``; without one,
-    try PPO, A2C, DQN, SAC and RecurrentPPO in turn."""
+    try PPO, A2C, DQN, SAC and RecurrentPPO in turn.
+
+    The file is trusted input: loading unpickles what it holds, which can run code."""
     file = model_path(path)
     algo = config_algorithm(file)
     if algo is not None:
@@ -164,8 +208,26 @@ class SB3Agent:
         """Load a model saved by ``python train.py``: ``path`` is the run folder, its
         ``model.zip``, or any other saved model of the run (a checkpoint, the best model). The
         algorithm class and the action repeat come from the run's ``config.json``; without
-        one, PPO, A2C, DQN, SAC and RecurrentPPO are tried in turn, and actions are not held."""
+        one, PPO, A2C, DQN, SAC and RecurrentPPO are tried in turn, and actions are not held.
+
+        The model file is trusted input only: loading unpickles its contents, and a crafted
+        file runs code. Check the model against an env with :meth:`check_env`."""
         return cls(path, deterministic=deterministic, device=device, seed=seed)
+
+    def check_env(self, env: Any, name: str = "the model") -> None:
+        """Refuse an env whose observation or action space differs from the model's, naming
+        ``name`` (e.g. the model file) and both spaces.
+
+        Raises:
+            ValueError: a space of another type, shape, dtype, bounds or size.
+        """
+        for what, model_space, env_space in (
+            ("observation", self.model.observation_space, env.observation_space),
+            ("action", self.action_space, env.action_space),
+        ):
+            if not _same_space(model_space, env_space):
+                raise ValueError(f"{name} was trained on the {what} space {model_space}, but "
+                                 f"this env has {env_space}")
 
     def reset(self) -> None:
         """Forget the recurrent state and the held action: the next action starts a new
@@ -219,6 +281,16 @@ class SB3Agent:
         mean = distribution.mean.reshape(space.shape).cpu().numpy()
         std = distribution.stddev.reshape(space.shape).cpu().numpy()
         return np.clip(mean + std * self.rng.standard_normal(space.shape), space.low, space.high)
+
+
+def _same_space(a: spaces.Space, b: spaces.Space) -> bool:
+    """Whether two spaces take the same values (Box bounds compared to float32 precision)."""
+    if type(a) is not type(b) or a.shape != b.shape:
+        return False
+    if isinstance(a, spaces.Box):
+        return bool(a.dtype == b.dtype and np.allclose(a.low, b.low, rtol=1e-6)
+                    and np.allclose(a.high, b.high, rtol=1e-6))
+    return a == b
 
 
 def _samples_itself(policy: Any, space: spaces.Space) -> bool:

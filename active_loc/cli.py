@@ -26,17 +26,38 @@ from active_loc.agents import AGENT_NAMES, make_agent
 from active_loc.agents.registry import split_top_level
 from active_loc.envs.registration import OTHER_ENV_IDS
 
+#: the files ``active-loc render`` writes
+VIDEO_SUFFIXES = (".gif", ".mp4")
+
 
 def render_episode(env_id: str, agent_name: str, out: Path, seed: int, fps: int) -> int:
-    """Run one seeded episode of ``agent_name`` and write its frames to ``out``."""
-    import imageio.v2 as imageio
-
-    env = gym.make(env_id, render_mode="rgb_array")
+    """Run one seeded episode of ``agent_name`` and write its frames to ``out``; a bad
+    argument is one line on stderr and exit status 2, before the episode runs."""
+    if fps < 1:
+        return _fail(f"--fps must be >= 1, got {fps}", "render")
+    if seed < 0:
+        return _fail(f"--seed must be >= 0, got {seed}", "render")
+    if out.suffix.lower() not in VIDEO_SUFFIXES:
+        return _fail(f"--out {out}: the file must end in {' or '.join(VIDEO_SUFFIXES)}",
+                     "render")
+    if out.exists() and out.is_dir():
+        return _fail(f"--out {out}: is a folder, not a video file", "render")
+    try:
+        import imageio.v2 as imageio
+    except ImportError:
+        return _fail('rendering needs imageio: pip install "active-loc[render]"', "render")
+    try:
+        env = gym.make(env_id, render_mode="rgb_array")
+    except (gym.error.Error, ValueError, TypeError) as error:
+        return _fail(f"--env {env_id}: {error}", "render")
     try:
         agent = make_agent(agent_name, env, seed)
-    except ValueError as error:
-        print(f"active-loc render: error: {error}", file=sys.stderr)
-        return 2
+    except (ValueError, TypeError, OSError, ImportError) as error:
+        return _fail(str(error), "render")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        return _fail(f"--out {out}: cannot write there: {error.strerror or error}", "render")
     obs, info = env.reset(seed=seed)
     frames = [env.render()]
     done = False
@@ -45,11 +66,13 @@ def render_episode(env_id: str, agent_name: str, out: Path, seed: int, fps: int)
         frames.append(env.render())
         done = terminated or truncated
     env.close()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if out.suffix == ".gif":
-        imageio.mimsave(out, frames, duration=1000 / fps, loop=0)
-    else:
-        imageio.mimsave(out, frames, fps=fps)
+    try:
+        if out.suffix.lower() == ".gif":
+            imageio.mimsave(out, frames, duration=1000 / fps, loop=0)
+        else:
+            imageio.mimsave(out, frames, fps=fps)
+    except OSError as error:
+        return _fail(f"--out {out}: cannot write the video: {error}", "render")
     print(
         f"{out}: {len(frames)} frames; final pose error {info['pose_error']:.3f} m, "
         f"entropy {info['entropy']:.2f} nats, success {info['is_success']}"
@@ -76,6 +99,8 @@ def evaluate_command(args: argparse.Namespace) -> int:
     from active_loc.agents import make_agent
     from active_loc.evaluation import (
         RAY_MISSING,
+        ResultsStream,
+        check_env_kwargs,
         evaluate,
         evaluate_ray,
         reseed_agent,
@@ -90,6 +115,10 @@ def evaluate_command(args: argparse.Namespace) -> int:
         return _fail(f"--env-kwargs is not valid JSON: {exc}")
     if not isinstance(env_kwargs, dict):
         return _fail(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
+    try:
+        check_env_kwargs(env_kwargs)
+    except ValueError as exc:
+        return _fail(f"--env-kwargs: {exc}")
     specs = [spec for spec in split_top_level(args.agents) if spec]
     if not specs:
         return _fail("--agents names no agent")
@@ -97,6 +126,8 @@ def evaluate_command(args: argparse.Namespace) -> int:
         return _fail(f"--agents names an agent twice: {args.agents!r}")
     if args.episodes < 1:
         return _fail(f"--episodes must be >= 1, got {args.episodes}")
+    if args.seed < 0:
+        return _fail(f"--seed must be >= 0, got {args.seed}")
     if args.baseline is not None and args.baseline not in specs:
         return _fail(f"--baseline {args.baseline!r} is not one of --agents {specs}")
     if args.ray is not None and importlib.util.find_spec("ray") is None:
@@ -113,13 +144,20 @@ def evaluate_command(args: argparse.Namespace) -> int:
         agents = make_agents()  # here also when --ray: bad names fail before any task runs
     except (ValueError, TypeError, OSError, ImportError, gym.error.Error) as exc:
         return _fail(str(exc))
-    if args.ray is not None:
-        records = evaluate_ray(args.env, env_kwargs, {spec: spec for spec in specs},
-                               args.episodes, args.seed, progress=True,
-                               address=args.ray or None)
-    else:
-        records = evaluate(args.env, env_kwargs, agents, args.episodes, args.seed,
-                           progress=True)
+    try:
+        stream = ResultsStream(args.out)  # before any episode: an unwritable --out fails now
+    except OSError as exc:
+        return _fail(f"--out {exc}")
+    try:
+        if args.ray is not None:
+            records = evaluate_ray(args.env, env_kwargs, {spec: spec for spec in specs},
+                                   args.episodes, args.seed, progress=True,
+                                   address=args.ray or None, on_record=stream.add)
+        else:
+            records = evaluate(args.env, env_kwargs, agents, args.episodes, args.seed,
+                               progress=True, on_record=stream.add)
+    finally:
+        stream.close()
     summary = summarize(records, baseline=args.baseline)
     files = write_results(records, summary, args.out)
     written = [*files.values(), *write_plots(records, args.out)]

@@ -436,10 +436,11 @@ def run_episodes(
     seed: int,
     *,
     reseed_agents: bool = True,
-    on_episode: Callable[[], None] | None = None,
+    on_episode: Callable[[EpisodeRecord], None] | None = None,
 ) -> list[EpisodeRecord]:
     """Episodes ``i`` in ``indices`` (reset seeds ``seed + i``) of ``agent`` in ``env``, in
-    that order; with ``reseed_agents``, :func:`reseed_agent` before each."""
+    that order; with ``reseed_agents``, :func:`reseed_agent` before each. ``on_episode`` is
+    called with each record as its episode ends."""
     records = []
     for i in indices:
         episode_seed = int(seed) + int(i)
@@ -447,15 +448,28 @@ def run_episodes(
             reseed_agent(agent, episode_seed)
         records.append(run_episode(env, agent, episode_seed, agent_name=name, episode=int(i)))
         if on_episode is not None:
-            on_episode()
+            on_episode(records[-1])
     return records
+
+
+def check_env_kwargs(env_kwargs: Mapping[str, Any] | None) -> dict[str, Any]:
+    """``env_kwargs`` as a dict, refusing a ``max_episode_steps`` that would never end an
+    episode (gymnasium's TimeLimit takes -1 or 1.5 and never truncates)."""
+    if env_kwargs is not None and not isinstance(env_kwargs, Mapping):
+        raise ValueError(f"env_kwargs must be a mapping, got {type(env_kwargs).__name__}")
+    kwargs = dict(env_kwargs or {})
+    steps = kwargs.get("max_episode_steps")
+    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, (int, np.integer))
+                              or steps < 1):
+        raise ValueError(f"max_episode_steps must be an integer >= 1 or None, got {steps!r}")
+    return kwargs
 
 
 def _check_episodes_and_seed(episodes: Any, seed: Any) -> None:
     if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-        raise ValueError(f"seed must be an integer, got {seed!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0 (a reset seed), got {seed!r}")
 
 
 def evaluate(
@@ -467,6 +481,7 @@ def evaluate(
     progress: bool = True,
     *,
     reseed_agents: bool = True,
+    on_record: Callable[[EpisodeRecord], None] | None = None,
 ) -> list[EpisodeRecord]:
     """Run every agent on the same seeded episodes of ``gymnasium.make(env_id, **env_kwargs)``.
 
@@ -486,6 +501,8 @@ def evaluate(
         seed: the base seed S.
         progress: show a progress bar over the episodes (tqdm, on stderr).
         reseed_agents: reseed each agent before each episode (see above).
+        on_record: called with each record as its episode ends (e.g.
+            :meth:`ResultsStream.add`, so that an interrupted run keeps its episodes).
 
     Returns:
         The records, agent by agent in the order of ``agents``, episodes in order.
@@ -493,7 +510,7 @@ def evaluate(
     _check_episodes_and_seed(episodes, seed)
     if not agents:
         raise ValueError("agents must name at least one agent")
-    kwargs = dict(env_kwargs or {})
+    kwargs = check_env_kwargs(env_kwargs)
     indices = range(int(episodes))
     bar = _progress_bar(len(agents) * len(indices), progress)
     records: list[EpisodeRecord] = []
@@ -505,7 +522,7 @@ def evaluate(
                     bar.set_postfix_str(name)
                 records += run_episodes(
                     env, agent, name, indices, int(seed), reseed_agents=reseed_agents,
-                    on_episode=None if bar is None else lambda: bar.update(1),
+                    on_episode=lambda record: _episode_done(record, bar, on_record),
                 )
             finally:
                 env.close()
@@ -513,6 +530,14 @@ def evaluate(
         if bar is not None:
             bar.close()
     return records
+
+
+def _episode_done(record: EpisodeRecord, bar: Any,
+                  on_record: Callable[[EpisodeRecord], None] | None) -> None:
+    if bar is not None:
+        bar.update(1)
+    if on_record is not None:
+        on_record(record)
 
 
 # --- many episodes on a Ray cluster ------------------------------------------------------------
@@ -561,6 +586,7 @@ def evaluate_ray(
     *,
     address: str | None = None,
     chunk_size: int | None = None,
+    on_record: Callable[[EpisodeRecord], None] | None = None,
 ) -> list[EpisodeRecord]:
     """:func:`evaluate` with the episodes run as Ray tasks: the same records, in the same order.
 
@@ -582,6 +608,7 @@ def evaluate_ray(
             starts a local Ray, or joins the one ``RAY_ADDRESS`` names). A Ray this function
             started is shut down when it returns; one already initialized is used as it is.
         chunk_size: episodes per task; None: about four tasks per CPU of the cluster.
+        on_record: called with each record as its task returns (tasks finish in any order).
 
     Raises:
         ImportError: Ray is not installed.
@@ -593,7 +620,7 @@ def evaluate_ray(
         import ray
     except ImportError as error:
         raise ImportError(RAY_MISSING) from error
-    kwargs = dict(env_kwargs or {})
+    kwargs = check_env_kwargs(env_kwargs)
     started = not ray.is_initialized()
     if started:
         ray.init(address=address)
@@ -614,8 +641,8 @@ def evaluate_ray(
                 ready, waiting = ray.wait(waiting, num_returns=1)
                 for ref in ready:
                     done[pending[ref]] = chunk_records = ray.get(ref)
-                    if bar is not None:
-                        bar.update(len(chunk_records))
+                    for record in chunk_records:
+                        _episode_done(record, bar, on_record)
         except BaseException:
             for ref in waiting:  # a task failed (or Ctrl-C): drop the rest
                 ray.cancel(ref)
@@ -878,6 +905,41 @@ def summary_markdown(summary: Mapping[str, Any]) -> str:
     if "paired" in summary:
         lines.append(comparison_markdown(summary["paired"]))
     return "\n".join(lines)
+
+
+class ResultsStream:
+    """``results.csv`` written row by row as episodes finish, so that an interrupted run keeps
+    every episode it ended; :func:`write_results` rewrites it in order at the end.
+
+    Opening it checks that ``out_dir`` can hold the results (created if missing) before any
+    episode runs.
+
+    Raises:
+        OSError: ``out_dir`` is a file, or cannot be created or written (the message names it).
+    """
+
+    def __init__(self, out_dir: str | Path) -> None:
+        out = Path(out_dir)
+        if out.exists() and not out.is_dir():
+            raise OSError(f"{out}: is a file, not a folder for the results")
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            self.path = out / "results.csv"
+            self._file = self.path.open("w", newline="", encoding="utf-8")
+        except OSError as error:
+            raise OSError(f"{out}: cannot write results there: "
+                          f"{error.strerror or error}") from None
+        self._writer = csv.DictWriter(self._file, fieldnames=CSV_COLUMNS)
+        self._writer.writeheader()
+        self._file.flush()
+
+    def add(self, record: EpisodeRecord) -> None:
+        """Append ``record``'s row and flush it to disk."""
+        self._writer.writerow({k: _csv_cell(v) for k, v in record.row().items()})
+        self._file.flush()
+
+    def close(self) -> None:
+        self._file.close()
 
 
 def write_results(

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 import platform
 import sys
@@ -336,6 +337,7 @@ def resolve_hyperparameters(args: TrainArgs) -> dict[str, Any]:
 def check_args(args: TrainArgs) -> None:
     """Ranges of the numeric arguments."""
     checks = [
+        ("seed", args.seed >= 0, ">= 0 (numpy and torch take no negative seed)"),
         ("total_steps", args.total_steps >= 1, ">= 1"),
         ("n_envs", args.n_envs >= 1, ">= 1"),
         ("action_repeat", args.action_repeat >= 1, ">= 1"),
@@ -343,17 +345,19 @@ def check_args(args: TrainArgs) -> None:
         ("eval_episodes", args.eval_episodes >= 1, ">= 1"),
         ("checkpoint_freq", args.checkpoint_freq >= 0, ">= 0"),
         ("torch_threads", args.torch_threads >= 1, ">= 1"),
-        ("gamma", 0.0 < args.gamma <= 1.0, "in (0, 1]"),
+        ("gamma", math.isfinite(args.gamma) and 0.0 < args.gamma <= 1.0, "in (0, 1]"),
         ("features_dim", args.features_dim >= 1, ">= 1"),
         ("cnn_channels", len(args.cnn_channels) >= 1 and min(args.cnn_channels) >= 1,
          "one or more sizes >= 1"),
         ("time_limit_minutes", args.time_limit_minutes is None or args.time_limit_minutes > 0,
          "> 0 or None"),
-        ("learning_rate", args.learning_rate is None or args.learning_rate > 0, "> 0"),
+        ("learning_rate", args.learning_rate is None or 0 < args.learning_rate < math.inf,
+         "a finite number > 0"),
         ("n_steps", args.n_steps is None or args.n_steps >= 1, ">= 1"),
         ("batch_size", args.batch_size is None or args.batch_size >= 2, ">= 2"),
         ("n_epochs", args.n_epochs is None or args.n_epochs >= 1, ">= 1"),
-        ("ent_coef", args.ent_coef is None or args.ent_coef >= 0, ">= 0"),
+        ("ent_coef", args.ent_coef is None or 0 <= args.ent_coef < math.inf,
+         "a finite number >= 0"),
         ("net_arch", args.net_arch is None or all(n >= 1 for n in args.net_arch), "sizes >= 1"),
         ("buffer_size", args.buffer_size is None or args.buffer_size >= 1, ">= 1"),
         ("learning_starts", args.learning_starts is None or args.learning_starts >= 0, ">= 0"),
@@ -361,6 +365,39 @@ def check_args(args: TrainArgs) -> None:
     for field, ok, allowed in checks:
         if not ok:
             raise TrainConfigError(f"{field} must be {allowed}, got {getattr(args, field)!r}")
+    check_device(args.device)
+
+
+def check_device(device: str) -> None:
+    """``device`` is a torch device this machine has: "cuda" without a GPU would otherwise
+    train on the CPU while the run records "cuda"."""
+    try:
+        parsed = torch.device(device)
+    except (RuntimeError, TypeError):
+        raise TrainConfigError(f"device {device!r} is not a torch device: use cpu, cuda "
+                               "or mps") from None
+    if parsed.type == "cuda" and not torch.cuda.is_available():
+        raise TrainConfigError(f"device {device!r}: torch sees no CUDA GPU on this machine "
+                               "(use --device cpu)")
+    if parsed.type == "mps" and not torch.backends.mps.is_available():
+        raise TrainConfigError(f"device {device!r}: torch has no MPS backend on this machine")
+    if parsed.type not in ("cpu", "cuda", "mps"):
+        raise TrainConfigError(f"device {device!r}: use cpu, cuda or mps")
+
+
+def make_out_folder(out: Path) -> None:
+    """Create the run folder ``out``, refusing a file or a place that cannot be written before
+    any training."""
+    if out.exists() and not out.is_dir():
+        raise TrainConfigError(f"out {out}: is a file, not a folder for the run")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / ".write_test"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as error:
+        raise TrainConfigError(f"out {out}: cannot write the run there: "
+                               f"{error.strerror or error}") from None
 
 
 def default_out(args: TrainArgs) -> Path:
@@ -686,6 +723,7 @@ def train(args: TrainArgs) -> Path:
     vec_mode = resolve_vec_env(
         args.vec_env, args.env, env_kwargs, args.n_envs, args.action_repeat
     )
+    make_out_folder(out)
 
     # seeding: python, numpy and torch here; the algorithm (seed), the training envs
     # (seed + i) and the eval env (seed + EVAL_SEED_OFFSET, replayed at every evaluation)
@@ -693,7 +731,6 @@ def train(args: TrainArgs) -> Path:
     torch.set_num_threads(args.torch_threads)
     eval_seed = args.seed + EVAL_SEED_OFFSET
 
-    out.mkdir(parents=True, exist_ok=True)
     config: dict[str, Any] = {
         "args": _jsonable(asdict(args)),
         "resolved": _jsonable({
@@ -804,5 +841,5 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> Path:
     try:
         return train(args)
     except TrainConfigError as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(f"{prog or 'train.py'}: error: {error}", file=sys.stderr)
         raise SystemExit(2) from None

@@ -168,7 +168,10 @@ def _as_array(value: Any) -> NDArray | None:
         return value
     detach = getattr(value, "detach", None)  # a torch tensor: to the CPU, then numpy
     if detach is not None:
-        value = detach().cpu().numpy()
+        tensor = detach().cpu()
+        if tensor.is_floating_point() and tensor.element_size() == 2:
+            tensor = tensor.float()  # numpy has no bfloat16; float16 widens exactly too
+        value = tensor.numpy()
     try:
         return np.asarray(value)
     except (TypeError, ValueError):

@@ -23,6 +23,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
+from active_loc.envs.field_checks import check_integer
 from active_loc.envs.localization_env import ActiveLocalizationEnv
 from active_loc.envs.maze_env import MazeEnv
 from active_loc.envs.vector_engines import (
@@ -32,6 +33,9 @@ from active_loc.envs.vector_engines import (
     MemberEngine,
     batched_core,
 )
+
+#: the most worker threads (more than any machine's cores, fewer than would exhaust it)
+MAX_WORKERS = 1024
 
 
 class ActiveLocalizationVectorEnv(VectorEnv):
@@ -80,16 +84,14 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         env_class: type[gym.Env] = ActiveLocalizationEnv,
         **env_kwargs: Any,
     ) -> None:
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or (
-            num_envs < 1
-        ):
-            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-        if max_episode_steps is not None and max_episode_steps < 1:
-            raise ValueError(f"max_episode_steps must be >= 1 or None, got {max_episode_steps}")
+        check_integer("num_envs", num_envs, 1)
+        if max_episode_steps is not None:
+            check_integer("max_episode_steps (or None)", max_episode_steps, 1)
+        if workers is not None:
+            check_integer("workers (or None)", workers, 1, MAX_WORKERS)
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        if not 1 <= render_envs <= num_envs:
-            raise ValueError(f"render_envs must be in [1, num_envs={num_envs}], got {render_envs}")
+        check_integer("render_envs", render_envs, 1, int(num_envs))
         try:
             self.autoreset_mode = AutoresetMode(autoreset_mode)
         except ValueError:

@@ -145,3 +145,37 @@ def test_maze_test_set_count_is_bounded_by_the_distinct_pairs_of_the_size() -> N
     assert max_test_set_count(5) == 112  # four 2 x 2 mazes, 7 free cells, 4 headings
     assert max_test_set_count(7) == 13056  # 192 spanning trees of 3 x 3 cells, 17 cells
     assert max_test_set_count(21) == MAX_TEST_SET_COUNT
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"workers": 1.5}, r"workers \(or None\) must be an integer in \[1, 1024\], got 1.5"),
+        ({"workers": "2"}, r"workers \(or None\) must be an integer in \[1, 1024\], got '2'"),
+        ({"max_episode_steps": 1.5}, r"max_episode_steps \(or None\) must be an integer >= 1"),
+        ({"max_episode_steps": float("nan")}, r"max_episode_steps \(or None\) must be an "),
+        ({"render_envs": 0}, r"render_envs must be an integer in \[1, 2\], got 0"),
+    ],
+)
+def test_the_vector_env_refuses_bad_arguments_by_name(kwargs: dict, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        gym.make_vec(LANDMARK, 2, vectorization_mode="vector_entry_point", **kwargs)
+
+
+@pytest.mark.parametrize("dtype_name", ["float32", "float16", "bfloat16", "float64"])
+def test_torch_tensors_are_actions_in_every_float_dtype(dtype_name: str) -> None:
+    torch = pytest.importorskip("torch")
+    dtype = getattr(torch, dtype_name)
+    env = gym.make("ActiveLoc/LandmarkEKF-v0")
+    env.reset(seed=0)
+    _, reward, *_ = env.step(torch.tensor([0.5, -0.25], dtype=dtype, requires_grad=True))
+    assert np.isfinite(reward)
+    vec = gym.make_vec("ActiveLoc/LandmarkEKF-v0", 2, vectorization_mode="vector_entry_point")
+    vec.reset(seed=0)
+    _, rewards, *_ = vec.step(torch.tensor([[0.5, -0.25], [0.0, 1.0]], dtype=dtype))
+    assert np.isfinite(rewards).all()
+    maze = gym.make("ActiveLoc/Maze-v0")
+    maze.reset(seed=0)
+    maze.step(torch.tensor(2))
+    with pytest.raises(ValueError, match="must be an integer index, got tensor"):
+        maze.step(torch.tensor(2.0, dtype=dtype))

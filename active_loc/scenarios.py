@@ -38,8 +38,9 @@ TEXTBOOK: MappingProxyType[str, Any] = MappingProxyType(
 )
 
 #: Pose tracking in a random 20 m x 20 m map of 8 to 15 landmarks with a range-bearing sensor
-#: of 90 degrees and 6 m: where the robot looks decides what it learns.
-LANDMARK_TRACKING: MappingProxyType[str, Any] = MappingProxyType({})
+#: of 90 degrees and 6 m: where the robot looks decides what it learns. The robot starts where
+#: no landmark is in view, so that no episode is over before the agent has looked.
+LANDMARK_TRACKING: MappingProxyType[str, Any] = MappingProxyType({"start": "unseen"})
 
 #: LandmarkEKF-v0's pose tracking with identical-looking landmarks (the chapter's Algorithm
 #: 3): the scan carries no identities, each landmark in view is missed with probability 0.1,
@@ -57,6 +58,7 @@ LANDMARK_UNKNOWN: MappingProxyType[str, Any] = MappingProxyType(
         "association_gate": 0.99,
         "initial_error_std": (0.2, 0.2, 0.05),
         "initial_belief_std": (0.2, 0.2, 0.05),
+        "start": "unseen",
     }
 )
 

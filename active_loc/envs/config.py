@@ -42,7 +42,7 @@ RESAMPLING = ("systematic", "stratified")
 ACTION_TYPES = ("continuous", "discrete")
 OBSERVATIONS = ("belief",)
 REWARDS = ("info_gain", "neg_entropy", "logdet", "trace")
-STARTS = ("random", "fixed")
+STARTS = ("random", "fixed", "unseen")
 _CHOICES = {
     "belief": BELIEFS, "ekf_backend": EKF_BACKENDS, "sensor": SENSORS,
     "action_type": ACTION_TYPES, "observation": OBSERVATIONS, "reward": REWARDS,
@@ -91,7 +91,10 @@ class LocalizationConfig:
     v_min: float = 0.0  # forward speed range (m/s)
     v_max: float = 1.0
     omega_max: float = 1.5  # turn rate range [-omega_max, omega_max] (rad/s)
-    start: str = "random"  # "random": uniform in the map (1 m from the border), any heading
+    # "random": uniform in the map (1 m from the border), any heading; "unseen" (landmark maps,
+    # EKF): the same, drawn again until no landmark is in view, so that the episode starts
+    # unlocalized and the agent must look; "fixed": start_pose
+    start: str = "random"
     start_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)  # used when start == "fixed"
 
     # --- sensor --------------------------------------------------------------------------
@@ -203,6 +206,7 @@ class LocalizationConfig:
         self._check_sensor()
         self._check_robot_and_filter()
         self._check_episode()
+        self._check_start()
         check_memory(memory_parts(self, *self._known_map_cells()))
 
     def _check_map(self) -> None:
@@ -291,6 +295,11 @@ class LocalizationConfig:
                              f"belief={self.belief!r}")
         if self.kidnap and self.belief != "mcl":
             raise ValueError("kidnap=True needs belief='mcl' (the EKF cannot recover from it)")
+
+    def _check_start(self) -> None:
+        if self.start == "unseen" and (self.belief != "ekf" or self.uses_grid):
+            raise ValueError("start='unseen' draws a start with no landmark in view: it needs "
+                             f"belief='ekf' on a landmark map, got belief={self.belief!r}")
 
     def _check_sensor(self) -> None:
         if not (is_finite_number(self.miss_probability) and 0 <= self.miss_probability < 1):

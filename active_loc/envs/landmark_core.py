@@ -54,6 +54,7 @@ from active_loc.sensors.landmarks import (
     RangeBearingSensor,
     RelativePositionSensor,
     measure_landmarks,
+    sees_a_landmark,
 )
 from active_loc.sensors.lidar import LidarSensor
 
@@ -70,6 +71,9 @@ NEED_NOISE = -2
 PRANGE_MIN_MEMBERS = 4
 
 
+#: draws of a random start before ``start="unseen"`` gives up (a start with no landmark in
+#: view is found within a few draws on the registered maps)
+MAX_UNSEEN_START_DRAWS = 1000
 TEXTBOOK_LANDMARKS = np.array([[0.0, 0.0], [2.0, 8.0], [8.0, 2.0], [10.0, 10.0]])
 TEXTBOOK_BOUNDS = (-2.0, -2.0, 14.0, 14.0)
 
@@ -405,6 +409,17 @@ def finish_batch(params: NDArray, state: NDArray, world: NDArray, obs: NDArray) 
 
 
 @numba.njit(cache=True, nogil=True)
+def random_start_pose(bounds: NDArray, uniforms: NDArray) -> tuple[float, float, float]:
+    """The start pose ``(x, y, theta)`` (m, m, rad) that 3 uniforms in [0, 1) place uniformly
+    in the map of ``bounds`` ``(x_min, y_min, x_max, y_max)``, 1 m from the border (or a
+    quarter of a small map), with any heading."""
+    margin = min(1.0, 0.25 * (bounds[2] - bounds[0]), 0.25 * (bounds[3] - bounds[1]))
+    x = bounds[0] + margin + uniforms[0] * (bounds[2] - bounds[0] - 2 * margin)
+    y = bounds[1] + margin + uniforms[1] * (bounds[3] - bounds[1] - 2 * margin)
+    return x, y, -np.pi + 2.0 * np.pi * uniforms[2]
+
+
+@numba.njit(cache=True, nogil=True)
 def reset_member_kernel(
     b: int,
     positions: NDArray,
@@ -439,10 +454,7 @@ def reset_member_kernel(
     row[X_BOX + B_WALLS] = 1.0 if walls else 0.0
     row[X_BOX + B_COUNT] = n
     if random_start:
-        margin = min(1.0, 0.25 * (bounds[2] - bounds[0]), 0.25 * (bounds[3] - bounds[1]))
-        row[X_POSE] = bounds[0] + margin + start[0] * (bounds[2] - bounds[0] - 2 * margin)
-        row[X_POSE + 1] = bounds[1] + margin + start[1] * (bounds[3] - bounds[1] - 2 * margin)
-        row[X_POSE + 2] = -np.pi + 2.0 * np.pi * start[2]
+        row[X_POSE], row[X_POSE + 1], row[X_POSE + 2] = random_start_pose(bounds, start)
     else:
         row[X_POSE : X_POSE + 3] = start
     for i in range(3):
@@ -554,7 +566,7 @@ class LandmarkCore(StateViews):
         self.actions = np.zeros((batch_size, 2))
         self._all_active = np.ones(batch_size, dtype=np.bool_)
         self._pending = np.zeros(batch_size, dtype=np.bool_)  # see step_batch
-        self._random_start = config.start == "random"
+        self._random_start = config.start in ("random", "unseen")
         self._start_pose = np.array(config.start_pose, dtype=np.float64)
         self._error_std = np.array(config.initial_error_std, dtype=np.float64)
         self._initial_cov = np.diag(np.square(config.initial_belief_std))
@@ -599,7 +611,10 @@ class LandmarkCore(StateViews):
         else:
             lmap = random_landmark_map(rng, cfg.map_size, cfg.n_landmarks)
         self.maps[b] = lmap
-        uniforms = rng.random(3) if self._random_start else self._start_pose
+        if cfg.start == "unseen":
+            uniforms = self._unseen_start(lmap, rng)
+        else:
+            uniforms = rng.random(3) if self._random_start else self._start_pose
         normals = rng.standard_normal(3)
         cursor = self.state[b, X_NOISE_CURSOR]
         reset_member_kernel(
@@ -612,6 +627,23 @@ class LandmarkCore(StateViews):
             self.state[b, X_NOISE_CURSOR] = cursor
         if isinstance(self.belief, FilterpyEKFBelief):
             self.belief.set(self.state[b, X_MEAN : X_MEAN + 3], self._initial_cov)
+
+    def _unseen_start(self, lmap: LandmarkMap, rng: np.random.Generator) -> NDArray:
+        """Uniforms of a random start (see :func:`random_start_pose`) from which no landmark
+        is in view, so that the first scan tells nothing and the agent must look: drawn
+        again until one is found, at most :data:`MAX_UNSEEN_START_DRAWS` times."""
+        bounds = np.asarray(lmap.bounds)
+        cfg = self.config
+        for _ in range(MAX_UNSEEN_START_DRAWS):
+            uniforms = rng.random(3)
+            x, y, theta = random_start_pose(bounds, uniforms)
+            if not sees_a_landmark(x, y, theta, lmap.positions, cfg.fov, cfg.max_range):
+                return uniforms
+        raise ValueError(
+            f"start='unseen': no start pose without a landmark in view in "
+            f"{MAX_UNSEEN_START_DRAWS} draws (fov={cfg.fov}, max_range={cfg.max_range}, "
+            f"{lmap.n_landmarks} landmarks); use start='random'"
+        )
 
     # -- step ----------------------------------------------------------------------------------
 

@@ -87,6 +87,18 @@ def in_view(
 
 
 @numba.njit(cache=True, nogil=True)
+def sees_a_landmark(
+    x: float, y: float, theta: float, landmarks: NDArray, fov: float, max_range: float
+) -> bool:
+    """Whether any landmark of ``landmarks`` ``(n, 2)`` is in view (:func:`in_view`) of pose
+    ``(x, y, theta)``."""
+    for j in range(landmarks.shape[0]):
+        if in_view(x, y, theta, landmarks[j, 0], landmarks[j, 1], fov, max_range):
+            return True
+    return False
+
+
+@numba.njit(cache=True, nogil=True)
 def measure_landmarks(
     kind: int,
     pose: NDArray,

@@ -24,7 +24,7 @@ import gymnasium as gym
 import active_loc
 from active_loc.agents import AGENT_NAMES, make_agent
 from active_loc.agents.registry import split_top_level
-from active_loc.envs.registration import OTHER_ENV_IDS
+from active_loc.envs.registration import DISCRETE_ENV_IDS, OTHER_ENV_IDS
 
 #: the files ``active-loc render`` writes
 VIDEO_SUFFIXES = (".gif", ".mp4")
@@ -246,10 +246,13 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.command == "envs":
         for env_id, scenario, max_steps in active_loc.ENV_IDS:
-            print(f"{env_id:<32} scenario={scenario:<18} max_episode_steps={max_steps}")
+            print(f"{env_id:<40} scenario={scenario:<18} max_episode_steps={max_steps}")
+        for env_id, scenario, max_steps in DISCRETE_ENV_IDS:
+            print(f"{env_id:<40} scenario={scenario:<18} max_episode_steps={max_steps} "
+                  "action_type=discrete")
         for env_id, entry_point, _vector, limit in OTHER_ENV_IDS:
             steps = "set by the env" if limit is None else limit
-            print(f"{env_id:<32} {entry_point}  max_episode_steps={steps}")
+            print(f"{env_id:<40} {entry_point}  max_episode_steps={steps}")
         return 0
     if args.command == "evaluate":
         return evaluate_command(args)

@@ -185,3 +185,27 @@ def test_bad_input_is_a_clear_value_error(
 ) -> None:
     with pytest.raises(ValueError, match=match):
         make_native_vec_env(env_id, n_envs, **kwargs)
+
+
+def test_subprocess_workers_make_the_ids_with_the_module_prefix() -> None:
+    """SB3's ``SubprocVecEnv`` starts its workers by forkserver or spawn: they have not
+    imported active_loc, so the id names its module ("active_loc:ActiveLoc/...")."""
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    env_id = "active_loc:ActiveLoc/LandmarkEKFDiscrete-v0"
+    subproc = make_vec_env(env_id, n_envs=2, seed=3, vec_env_cls=SubprocVecEnv,
+                           vec_env_kwargs={"start_method": "spawn"})
+    local = make_vec_env(env_id, n_envs=2, seed=3, vec_env_cls=DummyVecEnv)
+    try:
+        np.testing.assert_array_equal(subproc.reset(), local.reset())
+        for action in ([1, 2], [3, 0], [5, 4]):
+            obs, rewards, dones, _ = subproc.step(np.array(action))
+            expected, expected_rewards, expected_dones, _ = local.step(np.array(action))
+            np.testing.assert_array_equal(obs, expected)
+            # DummyVecEnv keeps rewards in float32, SubprocVecEnv in float64
+            np.testing.assert_allclose(rewards, expected_rewards, rtol=1e-6)
+            np.testing.assert_array_equal(dones, expected_dones)
+    finally:
+        subproc.close()
+        local.close()

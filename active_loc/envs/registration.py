@@ -19,6 +19,16 @@ ENV_IDS: tuple[tuple[str, str, int], ...] = (
     ("ActiveLoc/GridMarkov-v0", "grid_markov", 300),
 )
 
+#: (id, scenario, max_episode_steps) of the landmark ids with discrete actions
+#: (``action_type="discrete"``, six motion primitives), for scripts and libraries that make an
+#: env from its id alone: ``ActiveLoc/LandmarkEKFDiscrete-v0`` is ``ActiveLoc/LandmarkEKF-v0``
+#: with ``action_type="discrete"``.
+DISCRETE_ENV_IDS: tuple[tuple[str, str, int], ...] = tuple(
+    (env_id.replace("-v0", "Discrete-v0"), scenario, max_steps)
+    for env_id, scenario, max_steps in ENV_IDS
+    if scenario.startswith(("textbook", "landmark"))
+)
+
 MAZE_ID = "ActiveLoc/Maze-v0"
 MAZE_ENTRY_POINT = "active_loc.envs.maze_env:MazeEnv"
 MAZE_VECTOR_ENTRY_POINT = "active_loc.envs.vector_env:maze_vector_env"
@@ -31,17 +41,26 @@ OTHER_ENV_IDS: tuple[tuple[str, str, str, int | None], ...] = (
     (MAZE_ID, MAZE_ENTRY_POINT, MAZE_VECTOR_ENTRY_POINT, None),
 )
 
+#: every id of the namespace
+ALL_ENV_IDS: tuple[str, ...] = tuple(
+    entry[0] for entry in ENV_IDS + DISCRETE_ENV_IDS + OTHER_ENV_IDS
+)
+
 
 def register_envs() -> None:
     """Register every id once; calling again is a no-op."""
-    for env_id, scenario, max_steps in ENV_IDS:
+    discrete = {env_id for env_id, _, _ in DISCRETE_ENV_IDS}
+    for env_id, scenario, max_steps in ENV_IDS + DISCRETE_ENV_IDS:
         if env_id in registry:
             continue
+        kwargs = {"scenario": scenario}
+        if env_id in discrete:
+            kwargs["action_type"] = "discrete"
         register(
             id=env_id,
             entry_point=ENTRY_POINT,
             vector_entry_point=VECTOR_ENTRY_POINT,
-            kwargs={"scenario": scenario},
+            kwargs=kwargs,
             max_episode_steps=max_steps,
         )
     for env_id, entry_point, vector_entry_point, limit in OTHER_ENV_IDS:

@@ -38,12 +38,12 @@ except ImportError as err:  # pragma: no cover - depends on the installed extras
         'active_loc.integrations.rllib needs RLlib: pip install "active-loc[rllib]"'
     ) from err
 
-from active_loc.envs.registration import ENV_IDS, OTHER_ENV_IDS
+from active_loc.envs.registration import ALL_ENV_IDS
 
 __all__ = ["RLLIB_ENV_IDS", "env_creator", "make_env", "register_rllib_envs"]
 
 #: every ``ActiveLoc`` id
-RLLIB_ENV_IDS: tuple[str, ...] = tuple(i[0] for i in ENV_IDS) + tuple(i[0] for i in OTHER_ENV_IDS)
+RLLIB_ENV_IDS: tuple[str, ...] = ALL_ENV_IDS
 
 
 def make_env(

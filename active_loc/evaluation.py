@@ -46,6 +46,8 @@ Definitions (per episode; "step" counts the actions taken, 0 being the state aft
   ``env.unwrapped.core.pose`` (``env.unwrapped.true_pose`` in cells of 1 m for ``Maze-v0``);
   the jump of a kidnapping (a step with ``info["kidnapped"]``) is not a displacement.
 * **return**: the sum of the rewards.
+* **maze index**: the test-set entry a ``Maze-v0`` episode replayed (its ``maze_index`` after
+  ``reset``); None (an empty CSV cell) for random mazes and the other envs.
 
 Summary per agent (:func:`summarize`, over all its episodes unless said otherwise):
 ``success_rate`` and its Wilson 95% interval ``success_ci95``;
@@ -99,6 +101,7 @@ CSV_COLUMNS: tuple[str, ...] = (
     "terminated",
     "truncated",
     "belief",
+    "maze_index",
 )
 
 #: the keys of every agent's entry in ``summary.json``, in order
@@ -138,6 +141,9 @@ class EpisodeRecord:
         path_length: the true robot's path length (m).
         nees: the NEES at the end, or None for a belief without mean and covariance.
         step_limit: the most steps the env allows an episode; None if it has no limit.
+        maze_index: the test-set entry the episode replayed (``Maze-v0`` with ``test_set`` or
+            ``maze_index``: ``env.unwrapped.maze_index`` after ``reset``); None for an episode
+            on a random maze and for the envs without test sets (an empty CSV cell).
     """
 
     agent: str
@@ -158,6 +164,7 @@ class EpisodeRecord:
     path_length: float
     nees: float | None
     step_limit: int | None = None
+    maze_index: int | None = None
 
     @property
     def base_seed(self) -> int:
@@ -235,6 +242,7 @@ class EpisodeRecord:
             "terminated": self.terminated,
             "truncated": self.truncated,
             "belief": self.belief,
+            "maze_index": self.maze_index,
         }
 
 
@@ -249,6 +257,13 @@ def _true_pose(unwrapped: Any) -> NDArray[np.float64]:
         return np.array(core.pose[0], dtype=np.float64)
     ix, iy, h = unwrapped.true_pose
     return np.array([float(ix), float(iy), h * math.pi / 2])
+
+
+def _replayed_maze(unwrapped: Any) -> int | None:
+    """The test-set entry the current episode replays: ``Maze-v0``'s ``maze_index`` (None on
+    a random maze), None for an env without one."""
+    index = getattr(unwrapped, "maze_index", None)
+    return None if index is None else int(index)
 
 
 def belief_moments(
@@ -313,8 +328,9 @@ def run_episode(
     agent_name: str = "agent",
     episode: int = 0,
     callback: Callable[[gym.Env], None] | None = None,
+    options: dict[str, Any] | None = None,
 ) -> EpisodeRecord:
-    """Play one episode of ``agent`` in ``env`` from ``env.reset(seed=seed)``.
+    """Play one episode of ``agent`` in ``env`` from ``env.reset(seed=seed, options=options)``.
 
     Each step the agent gets the observation and ``env.unwrapped.planner_view()`` and returns
     an action. ``callback(env)``, if given, is called after ``reset`` and after every step (the
@@ -333,7 +349,8 @@ def run_episode(
         The :class:`EpisodeRecord`; see the module docstring for the metrics' definitions.
     """
     unwrapped = env.unwrapped
-    observation, info = env.reset(seed=seed)
+    observation, info = env.reset(seed=seed, options=options)
+    maze_index = _replayed_maze(unwrapped)
     if callback is not None:
         callback(env)
     entropy = [float(info["entropy"])]
@@ -381,6 +398,7 @@ def run_episode(
         path_length=path_length,
         nees=value,
         step_limit=step_limit(env),
+        maze_index=maze_index,
     )
 
 
@@ -446,10 +464,22 @@ def run_episodes(
         episode_seed = int(seed) + int(i)
         if reseed_agents:
             reseed_agent(agent, episode_seed)
-        records.append(run_episode(env, agent, episode_seed, agent_name=name, episode=int(i)))
+        records.append(run_episode(env, agent, episode_seed, agent_name=name, episode=int(i),
+                                   options=_test_set_entry(env.unwrapped, int(i))))
         if on_episode is not None:
             on_episode(records[-1])
     return records
+
+
+def _test_set_entry(unwrapped: gym.Env, episode: int) -> dict[str, Any] | None:
+    """The reset options of episode ``episode`` in an env that cycles through a test set
+    (``Maze-v0`` with ``test_set``): entry ``episode`` modulo the set's length, whatever ran
+    before it in this env (so that :func:`evaluate_ray`'s chunks replay the serial run's
+    mazes). None for every other env."""
+    test_set = getattr(unwrapped, "test_set", None)
+    if test_set is None or getattr(unwrapped.config, "maze_index", None) is not None:
+        return None
+    return {"maze_index": episode % len(test_set)}
 
 
 def check_env_kwargs(env_kwargs: Mapping[str, Any] | None) -> dict[str, Any]:

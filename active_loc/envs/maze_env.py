@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from typing import Any
 
@@ -24,10 +25,11 @@ from active_loc.envs.maze_core import (
     MazeCore,
     maze_move,
 )
-from active_loc.envs.outcome import RewardSettings, step_info
+from active_loc.envs.outcome import RewardSettings, step_info, typed_info
 from active_loc.maps.maze import (
     TEST_SET_SEED,
     MazeSet,
+    load_maze_set,
     max_test_set_count,
     maze_test_set,
     random_maze,
@@ -56,9 +58,11 @@ class MazeConfig:
     reward: str = "info_gain"  # "info_gain" (nats), "neg_entropy", "max_prob" (the paper's)
     # replay: an entry of the test set (every reset), or None
     maze_index: int | None = None
-    # replay: a MazeSet, or an int count = the first `count` entries of the standard set
-    # maze_test_set(size, count, TEST_SET_SEED); None with maze_index=None: random mazes
-    test_set: MazeSet | int | None = None
+    # replay: a MazeSet; the path of a maze file (.npy in the paper's test-data layout, or
+    # MazeSet.save's .npz), read here by load_maze_set, the field then holding the MazeSet; or
+    # an int count = the first `count` entries of the standard set maze_test_set(size, count,
+    # TEST_SET_SEED). None with maze_index=None: random mazes
+    test_set: MazeSet | int | str | os.PathLike[str] | None = None
     terminate_when_localized: bool = False  # end the episode as soon as the belief max is 1
     action_type: str = "discrete"  # the only one: the maze has 3 discrete actions
     belief: str = "grid"  # the only one: the exact Markov filter
@@ -92,16 +96,27 @@ class MazeConfig:
                 f"terminate_when_localized must be a bool, got {self.terminate_when_localized!r}"
             )
         test_set = self.test_set
+        if isinstance(test_set, (str, os.PathLike)):
+            try:
+                test_set = load_maze_set(test_set)
+            except ValueError as error:
+                raise type(error)(f"test_set: {error}") from None
+            object.__setattr__(self, "test_set", test_set)
         most = max_test_set_count(self.size)
         if test_set is not None and not isinstance(test_set, MazeSet):
             if not _is_int(test_set) or not 1 <= test_set <= most:
                 raise ValueError(
-                    f"test_set must be a MazeSet, an integer count in [1, {most}] (of the "
-                    f"standard {self.size} x {self.size} set) or None, got {test_set!r}"
+                    f"test_set must be a MazeSet, the path of a maze file (.npy or .npz), an "
+                    f"integer count in [1, {most}] (of the standard {self.size} x {self.size} "
+                    f"set) or None, got {test_set!r}"
                 )
         if isinstance(test_set, MazeSet) and test_set.size != self.size:
+            # the observation space is sized by `size`, so the mazes must fit it
+            origin = "" if test_set.source is None else f" {test_set.source}"
+            hint = f"; pass size={test_set.size}" if test_set.size in SIZES else ""
             raise ValueError(
-                f"test_set holds {test_set.size} x {test_set.size} mazes but size={self.size}"
+                f"test_set{origin} holds {test_set.size} x {test_set.size} mazes but "
+                f"size={self.size}{hint}"
             )
         index = self.maze_index
         if index is not None:
@@ -172,6 +187,10 @@ class MazePlannerView:
         sensor: the depth sensor of this maze (every pose's reading precomputed).
         action_space: ``Discrete(3)``.
         step: steps taken so far; episode_length: L.
+        depth: the reading of the last step or reset (a scalar int, cells): the cells from the
+            robot's own cell (counted as 1) to the first wall straight ahead, 1 to n - 2, as
+            ``info["depth"]`` and ``sensor.table`` at the true pose give it. What the robot
+            sensed, which the belief already holds; the pose it was read from stays hidden.
     """
 
     belief: GridBelief
@@ -182,6 +201,7 @@ class MazePlannerView:
     action_space: gym.spaces.Space
     step: int
     episode_length: int
+    depth: int
 
     def simulate(
         self, action: int, belief: GridBelief, rng: np.random.Generator
@@ -273,6 +293,16 @@ class MazeEnv(gym.Env):
     and the fraction of the episode elapsed, steps / L. Probabilities are kept as float32, not
     quantized, so small probabilities survive.
 
+    Coordinates. Cell ``(ix, iy)`` is column ``ix`` (x, east) and row ``iy`` (y, north) of the
+    maze, ``iy = 0`` at the *bottom* (the map frame's x right, y up; the cell spans ``[ix, ix +
+    1) x [iy, iy + 1)`` m of :attr:`grid`). :attr:`walls` is indexed ``walls[iy, ix]`` (as
+    :class:`~active_loc.maps.occupancy.OccupancyGrid` values), the belief ``prob[ix, iy, h]``
+    and the image ``obs[c, ix, iy]``: x first, so ``obs[4] == walls.T`` and ``obs[c] ==
+    prob[..., c]``. Headings ``h``: 0 east (+x), 1 north (+y), 2 west, 3 south. The paper's
+    state ``S[c, r, col]`` has row ``r = 0`` at the *top* and the same heading codes (its
+    north is toward row 0), so ``S = np.rot90(obs, axes=(1, 2))`` (``S[c] == obs[c].T[::-1]``)
+    and ``walls == M[::-1]`` for its map ``M``; the RGB frames are drawn north up.
+
     ## Rewards
 
     ``reward="info_gain"`` (default): ``H(b_{t-1}) - H(b_t)`` (nats), the drop in the belief's
@@ -287,11 +317,18 @@ class MazeEnv(gym.Env):
     Without a test set: a new Eller maze every reset (mazes equal to their own 90- or
     180-degree rotation are redrawn), a free cell and a heading drawn uniformly, all from
     ``self.np_random``. With ``test_set`` (a :class:`~active_loc.maps.maze.MazeSet`, e.g.
-    ``maze_test_set(n, 1000, seed)``, or a count of the standard set
+    ``maze_test_set(n, 1000, seed)``; the path of a maze file, read at construction by
+    :func:`~active_loc.maps.maze.load_maze_set`: a ``.npy`` in the layout of the paper's
+    released test data, such as its ``test_data/m7_n1000.npy``, or a ``.npz`` of
+    :meth:`MazeSet.save <active_loc.maps.maze.MazeSet.save>`; or a count of the standard set
     ``maze_test_set(size, count, TEST_SET_SEED)``): successive resets replay entries 0, 1, 2,
     ... (cycling); ``maze_index=k`` replays entry ``k`` at every reset (of the standard set
     when no test set is given), and ``reset(options={"maze_index": k})`` picks one for that
-    episode.
+    episode. :attr:`maze_index` names the entry of the current episode. A test set's mazes
+    must be ``size x size`` (the observation space is sized by ``size``); another size is
+    refused, naming the file. An entry of the paper's file is the episode the paper's
+    ``Maze2D`` plays with it: map row ``r`` is ``iy = n - 1 - r``, column ``col`` is ``ix``,
+    and the orientation is the heading.
 
     ## Episode End
 
@@ -314,10 +351,12 @@ class MazeEnv(gym.Env):
     reward="info_gain", maze_index=None, test_set=None, terminate_when_localized=False,
     render_mode=None)``: the fields of :class:`MazeConfig`. ``render_mode="rgb_array"`` draws
     the maze, the belief as a heat map (max over headings), its most probable cell (blue
-    frame) and the true pose (green triangle).
+    frame) and the true pose (green triangle); ``render_mode="human"`` shows that frame in a
+    pyplot window after every reset and step (matplotlib; on a non-interactive backend such as
+    Agg it only draws).
     """
 
-    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 4}  # noqa: RUF012
+    metadata: dict[str, Any] = {"render_modes": ["human", "rgb_array"], "render_fps": 4}  # noqa: RUF012
 
     def __init__(
         self,
@@ -325,7 +364,7 @@ class MazeEnv(gym.Env):
         episode_length: int | None = None,
         observation: str = "belief",
         maze_index: int | None = None,
-        test_set: MazeSet | int | None = None,
+        test_set: MazeSet | int | str | os.PathLike[str] | None = None,
         terminate_when_localized: bool = False,
         render_mode: str | None = None,
         reward: str = "info_gain",
@@ -364,6 +403,7 @@ class MazeEnv(gym.Env):
         else:
             self.test_set = None
         self.motion = MazeMotion()
+        self._window: Any = None  # the ImageWindow of render_mode="human", opened on first use
         self._next_index = 0
         self._maze_index: int | None = None
         self._has_reset = False
@@ -394,6 +434,8 @@ class MazeEnv(gym.Env):
         self._core.reset_member(self._member, walls, start)
         self._maze_index = index
         self._has_reset = True
+        if self.render_mode == "human":
+            self.render()
         return self._observation(), self.last_info()
 
     def step(
@@ -404,17 +446,34 @@ class MazeEnv(gym.Env):
         b = self._member
         self._core.step_member(b, _action_index(action))
         s = self._core.state[b]
+        if self.render_mode == "human":
+            self.render()
         return (self._observation(), float(s["reward"]), bool(s["terminated"]),
                 bool(s["truncated"]), self.last_info())
 
     def render(self) -> NDArray[np.uint8] | None:
+        """``rgb_array``: the frame of :func:`render_maze`; ``human``: the same frame shown in
+        a pyplot window (called by ``reset`` and ``step``), returning None."""
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode= to make()")
             return None
         if not self._has_reset:
             raise RuntimeError("call reset() before render()")
         b = self._member
-        return render_maze(self.walls, self._core.belief.prob[b], self._core.pose(b))
+        frame = render_maze(self.walls, self._core.belief.prob[b], self._core.pose(b))
+        if self.render_mode == "rgb_array":
+            return frame
+        if self._window is None:
+            from active_loc.envs.rendering import ImageWindow
+
+            self._window = ImageWindow("ActiveLoc/Maze-v0")
+        self._window.show(frame)
+        return None
+
+    def close(self) -> None:
+        if self._window is not None:
+            self._window.close()
+            self._window = None
 
     # -- planners -----------------------------------------------------------------------------
 
@@ -433,6 +492,7 @@ class MazeEnv(gym.Env):
             action_space=self.action_space,
             step=int(self._core.state[b]["steps"]),
             episode_length=self.episode_length,
+            depth=int(self._core.state[b]["depth"]),
         )
 
     @property
@@ -468,7 +528,7 @@ class MazeEnv(gym.Env):
                          self.reward_settings)
         info["depth"] = int(self._core.state[b]["depth"])
         info["max_prob"] = float(self._core.state[b]["max_prob"])
-        return info
+        return typed_info(info)
 
     # -- helpers ------------------------------------------------------------------------------
 
@@ -478,17 +538,18 @@ class MazeEnv(gym.Env):
         """The maze, start pose and test-set index of a new episode."""
         index = None if options is None else options.get("maze_index")
         if index is not None:
-            most = max_test_set_count(self.size)
+            # a given set bounds the index by its length, the standard set by what it can hold
+            if self.config.test_set is not None:
+                assert self.test_set is not None
+                most, what = len(self.test_set), " (the test set's length)"
+            else:
+                most, what = max_test_set_count(self.size), ""
             if not _is_int(index) or not 0 <= index < most:
                 raise ValueError(
-                    f"options['maze_index'] must be an integer in [0, {most}), got {index!r}"
+                    f"options['maze_index'] must be an integer in [0, {most}){what}, got "
+                    f"{index!r}"
                 )
             if self.test_set is None or index >= len(self.test_set):
-                if self.config.test_set is not None:
-                    raise ValueError(
-                        f"options['maze_index'] must be below the test set's length "
-                        f"{len(self.test_set) if self.test_set is not None else 0}, got {index}"
-                    )
                 self.test_set = maze_test_set(self.size, int(index) + 1, TEST_SET_SEED)
             index = int(index)
             self._next_index = index + 1

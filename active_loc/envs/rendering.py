@@ -34,6 +34,10 @@ to 15 ms (grid, 1000 particles, 60 beams), whatever the size of the grid. Matplo
 imported lazily: importing this module never needs it, constructing a renderer does
 (``pip install 'active-loc[render]'``). ``render_rgb`` never touches pyplot (safe in headless
 workers and subprocess vector envs); only ``show`` does.
+
+``ImageWindow`` is the ``human`` mode of an env that draws its own RGB frames (``Maze-v0``):
+it shows each frame in a pyplot window the way ``show`` does (non-blocking, only drawn on a
+non-interactive backend).
 """
 
 from __future__ import annotations
@@ -826,7 +830,6 @@ class _Renderer(Generic[_FrameT]):
         The window is (re)opened on first use or after the user closed it. On a non-interactive
         backend (e.g. Agg on a headless machine) the figure is drawn but nothing is shown.
         """
-        import matplotlib
         import matplotlib.pyplot as plt
 
         if self._window is None or not plt.fignum_exists(self._window.number):
@@ -837,11 +840,7 @@ class _Renderer(Generic[_FrameT]):
             self._window.show(warn=False)  # warn=False: no UserWarning on non-GUI backends
         assert self._window_scene is not None
         self._window_scene.update(frame)
-        canvas = self._window.canvas
-        canvas.draw_idle()
-        if matplotlib.get_backend().lower() not in _NON_INTERACTIVE_BACKENDS:
-            # What plt.pause does, but for this figure rather than pyplot's "current" one.
-            canvas.start_event_loop(1e-3)
+        _refresh_window(self._window)
 
     def close(self) -> None:
         """Close the ``show`` window and drop the figures. Idempotent."""
@@ -853,6 +852,74 @@ class _Renderer(Generic[_FrameT]):
         self._window_scene = None
         self._scene = None
         self._canvas = None
+
+
+def _refresh_window(figure: Figure) -> None:
+    """Redraw a pyplot window and let its GUI process events, without blocking; on a
+    non-interactive backend (e.g. Agg on a headless machine) only draw."""
+    import matplotlib
+
+    canvas = figure.canvas
+    canvas.draw_idle()
+    if matplotlib.get_backend().lower() not in _NON_INTERACTIVE_BACKENDS:
+        # What plt.pause does, but for this figure rather than pyplot's "current" one.
+        canvas.start_event_loop(1e-3)
+
+
+class ImageWindow:
+    """Shows ready-made RGB frames in a pyplot window, without blocking: the ``human`` mode of
+    an env that draws its own ``rgb_array`` frames (``Maze-v0``), so both modes show the same
+    picture, one image pixel per screen pixel.
+
+    Args:
+        title: the window's title.
+    """
+
+    def __init__(self, title: str = "") -> None:
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError as exc:
+            raise ImportError(
+                "rendering needs matplotlib: pip install 'active-loc[render]'"
+            ) from exc
+        self.title = title
+        self.figure: Figure | None = None  # the pyplot figure, while the window is open
+        self._image: Any = None  # its AxesImage
+
+    def show(self, image: NDArray[np.uint8]) -> None:
+        """Draw ``image`` ``(H, W, 3)`` uint8 into the window, (re)opened on first use, after
+        the user closed it, or when the frame's shape changes."""
+        import matplotlib.pyplot as plt
+
+        image = np.asarray(image)
+        if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
+            raise ValueError(f"image must be (H, W, 3) uint8, got {image.shape} {image.dtype}")
+        open_ = self.figure is not None and plt.fignum_exists(self.figure.number)
+        if not open_ or self._image.get_array().shape != image.shape:
+            self.close()
+            plt.ion()
+            height, width = image.shape[:2]
+            self.figure = plt.figure(figsize=(width / DPI, height / DPI), dpi=DPI)
+            manager = self.figure.canvas.manager
+            if manager is not None and self.title:
+                manager.set_window_title(self.title)
+            axes = self.figure.add_axes((0.0, 0.0, 1.0, 1.0))
+            axes.set_axis_off()
+            self._image = axes.imshow(image, interpolation="nearest")
+            self.figure.show(warn=False)  # warn=False: no UserWarning on non-GUI backends
+        else:
+            self._image.set_data(image)
+        assert self.figure is not None
+        _refresh_window(self.figure)
+
+    def close(self) -> None:
+        """Close the window. Idempotent."""
+        if self.figure is not None:
+            import matplotlib.pyplot as plt
+
+            plt.close(self.figure)
+        self.figure = None
+        self._image = None
 
 
 class LandmarkRenderer(_Renderer[LandmarkFrame]):

@@ -27,18 +27,39 @@ Training mazes exclude mazes that equal their own 90- or 180-degree rotation (on
 pose can never be told apart from its rotated twin). :func:`maze_test_set` gives the fixed,
 reproducible evaluation set: ``count`` distinct (maze, start pose) pairs, symmetric mazes
 excluded, as the paper's test data (1000 per size).
+
+Files. :func:`load_maze_set` reads a :class:`MazeSet` from either of two layouts, told apart
+by the suffix (read with ``allow_pickle=False``, checked before anything is built from them):
+
+* ``.npy``, the layout of the paper's released test data (``test_data/m7_n1000.npy`` of
+  Active Neural Localization): a 2-D array with one row per maze of ``n * n + 3`` numbers,
+  the flattened map ``M[r, c]`` (1 = wall, 0 = free, row ``r = 0`` at the *top*), then the
+  start's ``row``, ``col`` and ``orientation`` (0 east = ``col + 1``, 1 north = ``row - 1``,
+  2 west, 3 south; turning left adds 1). Read as ``walls[iy, ix] = M[n - 1 - iy, ix]``, start
+  ``(ix, iy, h) = (col, n - 1 - row, orientation)``: the orientation codes are this module's
+  headings (:data:`HEADING_STEPS`), because the paper's north, toward row 0, is +y here.
+  :meth:`MazeSet.to_anl` and :meth:`MazeSet.save_anl` write it back (float64, as the released
+  files are), so ANL rows -> :class:`MazeSet` -> ANL rows is exact.
+* ``.npz``, :meth:`MazeSet.save`'s archive: ``walls`` ``(count, n, n)`` bool in this module's
+  layout, ``starts`` ``(count, 3)`` int64 ``(ix, iy, heading)``, and ``seed`` (int64, absent
+  when the set has none).
 """
 
 from __future__ import annotations
 
 import functools
 import math
+import os
+import zipfile
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from active_loc.maps.map_image import MapFileError, MapFileNotFoundError
 from active_loc.maps.occupancy import FREE, OCCUPIED, OccupancyGrid
 
 #: probability that two neighbours of different sets in a row are joined (the paper's 2/3)
@@ -61,6 +82,15 @@ MAX_TEST_SET_COUNT = 100_000
 #: draws in a row without a new (maze, start) pair after which a size is taken to have no more
 #: (small mazes have few: at n = 7 about 13 000)
 _STALL_DRAWS = 5000
+#: the suffix of the paper's test-data layout and of :meth:`MazeSet.save`'s archive
+ANL_SUFFIX = ".npy"
+MAZE_SET_SUFFIX = ".npz"
+#: the largest maze file read (bytes): 10**5 mazes of 21 x 21 in the paper's float64 rows take
+#: 355 MB
+MAX_MAZE_FILE_BYTES = 2**30
+#: the first bytes of a NumPy ``.npy`` file and of a zip archive (``.npz``)
+_NPY_MAGIC = b"\x93NUMPY"
+_ZIP_MAGIC = b"PK"
 
 
 @numba.njit(cache=True, nogil=True)
@@ -205,11 +235,13 @@ class MazeSet:
         starts: ``(count, 3)`` int64 ``(ix, iy, heading)`` start poses, each on a free cell,
             heading in 0..3 (0 east, 1 north, 2 west, 3 south). Stored read-only.
         seed: the seed it was generated from (information only; ``None`` if built by hand).
+        source: the file it was read from (information only; ``None`` if built in memory).
     """
 
     walls: NDArray[np.bool_]
     starts: NDArray[np.int64]
     seed: int | None = None
+    source: str | None = None
 
     def __post_init__(self) -> None:
         walls = np.array(self.walls, dtype=bool)
@@ -228,10 +260,20 @@ class MazeSet:
         starts = starts.astype(np.int64)
         ix, iy, h = starts[:, 0], starts[:, 1], starts[:, 2]
         inside = (ix >= 0) & (ix < n) & (iy >= 0) & (iy < n)
-        if not inside.all() or np.any((h < 0) | (h > 3)):
-            raise ValueError("MazeSet.starts must be (ix, iy, heading) in the maze, heading 0..3")
-        if walls[np.arange(count), iy, ix].any():
-            raise ValueError("MazeSet.starts must lie on free cells")
+        bad = ~inside | (h < 0) | (h > 3)
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise ValueError(
+                f"MazeSet.starts must be (ix, iy, heading) in the {n} x {n} maze, heading 0..3; "
+                f"entry {k} is {tuple(starts[k].tolist())}"
+            )
+        on_wall = walls[np.arange(count), iy, ix]
+        if on_wall.any():
+            k = int(np.argmax(on_wall))
+            raise ValueError(
+                f"MazeSet.starts must lie on free cells; entry {k}, {tuple(starts[k].tolist())}, "
+                "is on a wall"
+            )
         walls.setflags(write=False)
         starts.setflags(write=False)
         object.__setattr__(self, "walls", walls)
@@ -256,7 +298,201 @@ class MazeSet:
         for value in state.values():
             if isinstance(value, np.ndarray):
                 value.setflags(write=False)  # unpickled arrays come back writeable
+        self.__dict__.setdefault("source", None)  # pickled before the field existed
         self.__dict__.update(state)
+
+    # -- the paper's layout (see the module docstring) -------------------------------------------
+
+    @classmethod
+    def from_anl(cls, rows: ArrayLike, source: str | None = None) -> MazeSet:
+        """The set held by rows in the layout of the paper's test data: ``(count, n * n + 3)``
+        numbers per maze, the map (1 = wall, 0 = free, row 0 at the top), then the start's
+        row, col and orientation (0 east, 1 north, 2 west, 3 south).
+
+        Raises:
+            ValueError: the rows are not that layout (the message names ``source`` and, where
+                one is at fault, the maze by its index).
+        """
+        where = source if source is not None else "ANL maze rows"
+        maps, start = _anl_rows(np.asarray(rows), where)
+        n = maps.shape[1]
+        row, col, orientation = start.T
+        starts = np.stack([col, n - 1 - row, orientation], axis=1)
+        return cls(maps[:, ::-1, :], starts, source=source)
+
+    def to_anl(self) -> NDArray[np.float64]:
+        """The set in the layout of the paper's test data: ``(count, n * n + 3)`` float64 (as
+        the released files), each row the flattened map ``M[r, c]`` (1.0 wall, row 0 at the
+        top) then the start's row, col and orientation; the inverse of :meth:`from_anl`."""
+        n = self.size
+        maps = self.walls[:, ::-1, :].reshape(len(self), n * n)
+        ix, iy, h = self.starts.T
+        start = np.stack([n - 1 - iy, ix, h], axis=1)
+        return np.concatenate([maps, start], axis=1).astype(np.float64)
+
+    # -- files ----------------------------------------------------------------------------------
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the set to ``path`` (ending in ``.npz``) as :func:`load_maze_set` reads it:
+        ``walls``, ``starts`` and (when not None) ``seed``, compressed."""
+        target = _maze_file_path(path, MAZE_SET_SUFFIX)
+        arrays = {"walls": self.walls, "starts": self.starts}
+        if self.seed is not None:
+            arrays["seed"] = np.int64(self.seed)
+        np.savez_compressed(target, **arrays)
+
+    def save_anl(self, path: str | os.PathLike[str]) -> None:
+        """Write :meth:`to_anl` to ``path`` (ending in ``.npy``): the paper's test-data file."""
+        np.save(_maze_file_path(path, ANL_SUFFIX), self.to_anl())
+
+
+def _anl_rows(rows: NDArray, where: str) -> tuple[NDArray[np.bool_], NDArray[np.int64]]:
+    """The maps ``(count, n, n)`` bool (``M[k, r, c]``, row 0 at the top) and starts
+    ``(count, 3)`` int64 ``(row, col, orientation)`` of rows in the paper's layout, checked.
+
+    Raises:
+        ValueError: naming ``where`` and what is wrong.
+    """
+    if rows.dtype.kind not in "biuf":
+        raise ValueError(f"{where}: must hold numbers (bool, integer or float), got dtype "
+                         f"{rows.dtype}")
+    if rows.ndim != 2 or rows.shape[0] < 1:
+        raise ValueError(f"{where}: must be a 2-D array with one row per maze, (count >= 1, "
+                         f"n * n + 3), got shape {rows.shape}")
+    length = rows.shape[1]
+    n = math.isqrt(max(length - 3, 0))
+    if n * n != length - 3:
+        raise ValueError(f"{where}: rows of {length} entries are not n * n + 3 for an integer n "
+                         "(the n x n map, then the start's row, col and orientation)")
+    if n < 5 or n % 2 == 0:
+        raise ValueError(f"{where}: rows of {length} entries hold {n} x {n} maps; n must be an "
+                         "odd integer >= 5")
+    _first_bad(~np.isfinite(rows).all(axis=1), where, "holds a non-finite value (NaN or inf)")
+    maps = rows[:, : n * n]
+    _first_bad(((maps != 0) & (maps != 1)).any(axis=1), where,
+               "has a map value other than 0 (free) and 1 (wall)")
+    start = rows[:, n * n :]
+    _first_bad((start != np.round(start)).any(axis=1), where,
+               "has a start row, col or orientation that is not an integer")
+    row, col, orientation = start.T  # ranges checked before the cast to integers
+    _first_bad((row < 0) | (row >= n) | (col < 0) | (col >= n), where,
+               f"has a start row or col outside 0..{n - 1}")
+    _first_bad((orientation < 0) | (orientation > 3), where,
+               "has an orientation not in 0..3 (0 east, 1 north, 2 west, 3 south)")
+    start = start.astype(np.int64)
+    row, col = start[:, 0], start[:, 1]
+    maps = maps.reshape(-1, n, n).astype(bool)
+    _first_bad(maps[np.arange(maps.shape[0]), row, col], where, "starts on a wall")
+    return maps, start
+
+
+def _first_bad(bad: NDArray[np.bool_], where: str, what: str) -> None:
+    """Raise for the first maze (row of the file) where ``bad`` ``(count,)`` holds."""
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise ValueError(f"{where}: maze {k} (row {k} of the array) {what}")
+
+
+def load_maze_set(path: str | os.PathLike[str]) -> MazeSet:
+    """Read a :class:`MazeSet` from a ``.npy`` file in the layout of the paper's test data or
+    from a ``.npz`` archive of :meth:`MazeSet.save` (see the module docstring). Both are read
+    with ``allow_pickle=False`` and checked whole before the set is built.
+
+    Raises:
+        TypeError: ``path`` is not a str or os.PathLike.
+        MapFileNotFoundError: no such file (a ValueError and a FileNotFoundError).
+        MapFileError: a ValueError naming the file and what is wrong: another suffix, not a
+            NumPy file of that kind, larger than :data:`MAX_MAZE_FILE_BYTES`, Python objects,
+            or arrays that are not a maze set.
+    """
+    file = _maze_file_path(path, ANL_SUFFIX, MAZE_SET_SUFFIX)
+    if not file.exists():
+        raise MapFileNotFoundError(f"{file}: no such maze file")
+    if not file.is_file():
+        raise MapFileError(f"{file}: is not a file")
+    if file.stat().st_size > MAX_MAZE_FILE_BYTES:
+        raise MapFileError(f"{file}: larger than {MAX_MAZE_FILE_BYTES} bytes")
+    try:
+        if file.suffix.lower() == ANL_SUFFIX:
+            return MazeSet.from_anl(_read_npy(file), source=str(file))
+        return _from_archive(_read_npz(file), file)
+    except MapFileError:
+        raise
+    except ValueError as error:
+        message = str(error)
+        prefix = f"{file}: "
+        raise MapFileError(message if message.startswith(prefix) else prefix + message) from None
+
+
+def _maze_file_path(path: str | os.PathLike[str], *suffixes: str) -> Path:
+    """``path`` as a Path, refused unless it is a str or os.PathLike ending in ``suffixes``."""
+    if not isinstance(path, (str, os.PathLike)) or isinstance(os.fspath(path), bytes):
+        raise TypeError(f"a maze file path must be a str or os.PathLike, got "
+                        f"{type(path).__name__}: {path!r}")
+    file = Path(path)
+    if file.suffix.lower() not in suffixes:
+        raise MapFileError(f"{file}: a maze file must end in {' or '.join(suffixes)} (the "
+                           "paper's test-data layout, or MazeSet.save's archive)")
+    return file
+
+
+def _magic(file: Path) -> bytes:
+    with file.open("rb") as handle:
+        return handle.read(len(_NPY_MAGIC))
+
+
+def _read_npy(file: Path) -> NDArray:
+    """The array in a ``.npy`` file (no pickles)."""
+    head = _magic(file)
+    if head.startswith(_ZIP_MAGIC):
+        raise MapFileError(f"{file}: is an .npz archive (a zip file), not an .npy array; "
+                           "name it .npz if it was written by MazeSet.save")
+    if head != _NPY_MAGIC:
+        raise MapFileError(f"{file}: not a NumPy .npy file (no .npy header)")
+    return _checked_load(file)
+
+
+def _read_npz(file: Path) -> dict[str, NDArray]:
+    """The arrays in a ``.npz`` archive (no pickles)."""
+    if not _magic(file).startswith(_ZIP_MAGIC):
+        raise MapFileError(f"{file}: not a NumPy .npz archive (not a zip file)")
+    return _checked_load(file)
+
+
+def _checked_load(file: Path) -> Any:
+    """``np.load(file, allow_pickle=False)``, every array read, errors naming the file."""
+    try:
+        loaded = np.load(file, allow_pickle=False)
+        if isinstance(loaded, np.lib.npyio.NpzFile):
+            with loaded:
+                return {name: loaded[name] for name in loaded.files}
+        return loaded
+    except ValueError as error:
+        if "allow_pickle" in str(error):
+            raise MapFileError(f"{file}: holds Python objects (an object array); maze files "
+                               "hold numbers only and are read with allow_pickle=False") from None
+        raise MapFileError(f"{file}: cannot be read: {error}") from None
+    except (OSError, EOFError, zipfile.BadZipFile) as error:
+        raise MapFileError(f"{file}: cannot be read: {error}") from None
+
+
+_ARCHIVE_KEYS = ("walls", "starts", "seed")
+
+
+def _from_archive(arrays: dict[str, NDArray], file: Path) -> MazeSet:
+    """The :class:`MazeSet` of :meth:`MazeSet.save`'s arrays."""
+    missing = [key for key in _ARCHIVE_KEYS[:2] if key not in arrays]
+    unknown = sorted(set(arrays) - set(_ARCHIVE_KEYS))
+    if missing or unknown:
+        raise MapFileError(f"{file}: a MazeSet archive holds walls, starts and optionally seed; "
+                           f"missing {missing}, unknown {unknown}")
+    walls, starts = arrays["walls"], arrays["starts"]
+    if walls.dtype != np.bool_:
+        raise MapFileError(f"{file}: walls must be bool (True = wall), got dtype {walls.dtype}")
+    seed = arrays.get("seed")
+    if seed is not None and (seed.shape != () or seed.dtype.kind not in "iu"):
+        raise MapFileError(f"{file}: seed must be one integer, got {seed.dtype} {seed.shape}")
+    return MazeSet(walls, starts, None if seed is None else int(seed), source=str(file))
 
 
 def maze_test_set(n: int, count: int, seed: int) -> MazeSet:

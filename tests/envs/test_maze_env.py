@@ -11,6 +11,7 @@ import dataclasses
 import math
 import warnings
 from collections import defaultdict
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -24,6 +25,7 @@ from active_loc.envs.maze_env import (
     TURN_RIGHT,
     MazeEnv,
 )
+from active_loc.maps.map_image import MapFileError, MapFileNotFoundError
 from active_loc.maps.maze import TEST_SET_SEED, MazeSet, eller_maze, maze_test_set
 from active_loc.sensors.depth import depth_table
 
@@ -443,7 +445,7 @@ def test_rgb_array_frames(size: int) -> None:
     assert np.all(frames[-1][:cell, :cell] == [45, 45, 52])  # the top-left border wall
 
 
-def test_render_without_mode_warns_and_human_is_rejected() -> None:
+def test_render_without_mode_warns_and_unknown_modes_are_rejected() -> None:
     env = MazeEnv()
     env.reset(seed=0)
     with warnings.catch_warnings(record=True) as caught:
@@ -451,4 +453,244 @@ def test_render_without_mode_warns_and_human_is_rejected() -> None:
         assert env.render() is None
     assert caught
     with pytest.raises(ValueError, match="render_mode"):
-        MazeEnv(render_mode="human")
+        MazeEnv(render_mode="ansi")
+
+
+def test_human_mode_shows_the_rgb_frame_headless() -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    assert MazeEnv.metadata["render_modes"] == ["human", "rgb_array"]
+    human = gym.make("ActiveLoc/Maze-v0", size=15, render_mode="human")
+    rgb = gym.make("ActiveLoc/Maze-v0", size=15, render_mode="rgb_array")
+    human.reset(seed=3)
+    rgb.reset(seed=3)
+    window = human.unwrapped._window
+    assert window is not None and plt.fignum_exists(window.figure.number)  # shown by reset
+    for a in (2, 0, 2, 2, 1):
+        human.step(a)
+        rgb.step(a)
+        shown = np.asarray(window.figure.axes[0].images[0].get_array())
+        assert np.array_equal(shown, rgb.render())  # step showed this step's frame
+    assert human.render() is None
+    number = window.figure.number
+    human.close()
+    assert not plt.fignum_exists(number)
+    human.close()  # idempotent
+    rgb.close()
+
+
+# --- maze files and the paper's coordinates ---------------------------------------------------
+
+#: a 7 x 7 maze as the paper's files store it: row 0 at the TOP, "#" = 1 (wall), "." = 0
+ANL_PICTURE = (
+    "#######",
+    "#.....#",
+    "#.###.#",
+    "#...#.#",
+    "###.#.#",
+    "#.....#",
+    "#######",
+)
+#: the paper's (row, col) offset per orientation: 0 east, 1 north (row - 1), 2 west, 3 south
+ANL_STEPS = {0: (0, 1), 1: (-1, 0), 2: (0, -1), 3: (1, 0)}
+
+
+def anl_map() -> np.ndarray:
+    return np.array([[1.0 if ch == "#" else 0.0 for ch in line] for line in ANL_PICTURE])
+
+
+def anl_file(path: Path, starts: list[tuple[int, int, int]], m: np.ndarray | None = None) -> Path:
+    """An .npy of the paper's layout: the map flattened, then row, col, orientation."""
+    m = anl_map() if m is None else m
+    rows = [np.concatenate([m.flatten(), np.array([r, c]), np.array([o])]) for r, c, o in starts]
+    np.save(path, np.stack(rows))
+    return path
+
+
+def anl_depth(m: np.ndarray, r: int, c: int, o: int) -> int:
+    dr, dc = ANL_STEPS[o]
+    d = 0
+    while 0 <= r < m.shape[0] and 0 <= c < m.shape[1] and m[r, c] == 0:
+        d, r, c = d + 1, r + dr, c + dc
+    return d
+
+
+def anl_episode(m: np.ndarray, start: tuple[int, int, int], actions: list[int]) -> tuple:
+    """The paper's ``Maze2D`` in its own coordinates: its states ``(5, n, n)`` (posterior
+    ``[o, r, c]`` then the map) and depths, after reset and after each action."""
+    n = m.shape[0]
+    lik = np.zeros((n - 2, 4, n, n))
+    for o in range(4):
+        for r in range(n):
+            for c in range(n):
+                d = anl_depth(m, r, c, o)
+                if d > 0:
+                    lik[d - 1, o, r, c] = 1.0
+    r, c, o = start
+    z = anl_depth(m, r, c, o)
+    post = lik[z - 1] / lik[z - 1].sum()
+    states, depths = [np.concatenate([post, m[None]])], [z]
+    for a in actions:
+        if a == TURN_LEFT:  # the paper's TURN_LEFT: orientation + 1
+            prior, o = np.roll(post, 1, axis=0), (o + 1) % 4
+        elif a == TURN_RIGHT:
+            prior, o = np.roll(post, -1, axis=0), (o - 1) % 4
+        else:
+            prior = post.copy()
+            if z != 1:  # every hypothesis reads z, so none is blocked
+                prior = np.zeros_like(post)
+                for oo, (dr, dc) in ANL_STEPS.items():
+                    src = post[oo, max(0, -dr) : n - max(0, dr), max(0, -dc) : n - max(0, dc)]
+                    prior[oo, max(0, dr) : n - max(0, -dr), max(0, dc) : n - max(0, -dc)] = src
+            dr, dc = ANL_STEPS[o]
+            if m[r + dr, c + dc] == 0:
+                r, c = r + dr, c + dc
+        z = anl_depth(m, r, c, o)
+        post = lik[z - 1] * prior
+        post /= post.sum()
+        states.append(np.concatenate([post, m[None]]))
+        depths.append(z)
+    return states, depths
+
+
+def test_a_paper_file_is_replayed_with_its_walls_and_start_cell_by_cell(tmp_path: Path) -> None:
+    path = anl_file(tmp_path / "m7_n3.npy", [(1, 1, 0), (5, 1, 1), (3, 3, 3)])
+    for test_set in (str(path), path):
+        env = gym.make("ActiveLoc/Maze-v0", test_set=test_set)
+        _, info = env.reset(seed=0)
+        walls = env.unwrapped.walls
+        for r, line in enumerate(ANL_PICTURE):
+            for c, ch in enumerate(line):
+                assert walls[6 - r, c] == (ch == "#"), (r, c)  # row 0 of the file is the top
+        # (row 1, col 1, east) -> (ix 1, iy 5, heading 0): "#.....#" ahead, 5 cells
+        assert env.unwrapped.true_pose == (1, 5, 0) and info["depth"] == 5
+        _, info = env.reset()
+        # (row 5, col 1, north) -> (1, 1, 1): north is toward row 0, up col 1: rows 5, then
+        # the wall of row 4 ("###.#.#") -> 1 cell
+        assert env.unwrapped.true_pose == (1, 1, 1) and info["depth"] == 1
+        _, info = env.reset()
+        # (row 3, col 3, south) -> (3, 3, 3): rows 3, 4, 5 of col 3 are free -> 3 cells
+        assert env.unwrapped.true_pose == (3, 3, 3) and info["depth"] == 3
+        assert env.unwrapped.maze_index == 2
+        assert env.unwrapped.test_set.source == str(path)
+
+
+def test_the_env_plays_a_paper_file_exactly_as_the_papers_maze2d(tmp_path: Path) -> None:
+    """Same actions, same depths, and the paper's state is ``np.rot90(obs, axes=(1, 2))``."""
+    generated = maze_test_set(7, 3, seed=5).to_anl()
+    starts = [(1, 1, 0), (3, 5, 2), (5, 5, 1)]
+    path = anl_file(tmp_path / "m7.npy", starts)
+    rng = np.random.default_rng(0)
+    sets = [(path, [anl_map()] * 3, starts)]
+    generated_path = tmp_path / "generated.npy"
+    np.save(generated_path, generated)
+    sets.append((generated_path, [row[:49].reshape(7, 7) for row in generated],
+                 [tuple(int(v) for v in row[49:]) for row in generated]))
+    for file, maps, anl_starts in sets:
+        env = MazeEnv(test_set=file, episode_length=30)
+        for m, start in zip(maps, anl_starts, strict=True):
+            actions = rng.integers(3, size=30).tolist()
+            states, depths = anl_episode(m, start, actions)
+            obs, info = env.reset()
+            assert info["depth"] == depths[0]
+            assert np.allclose(np.rot90(obs, axes=(1, 2)), states[0], rtol=0, atol=1e-6)
+            for t, a in enumerate(actions, start=1):
+                obs, _, _, _, info = env.step(a)
+                assert info["depth"] == depths[t]
+                assert np.allclose(np.rot90(obs, axes=(1, 2)), states[t], rtol=0, atol=1e-6)
+
+
+def test_observation_is_x_first_the_transpose_of_walls_iy_ix() -> None:
+    env = MazeEnv(size=15)
+    obs, _ = env.reset(seed=4)
+    for a in (2, 0, 2, 2):
+        obs, *_ = env.step(a)
+    n = 15
+    walls = env.walls
+    assert np.array_equal(obs[4], walls.T.astype(np.float32))  # obs[4, ix, iy] = walls[iy, ix]
+    assert np.array_equal(obs[:4], np.moveaxis(env.belief.prob[0], 2, 0).astype(np.float32))
+    # a wall cell (ix, iy) off the diagonal reads 1.0 at obs[4, ix, iy]
+    iy, ix = next((y, x) for y, x in np.argwhere(walls) if walls[y, x] != walls[x, y])
+    assert obs[4, ix, iy] == 1.0 and obs[4, iy, ix] == 0.0
+    # the paper's state puts row 0 at the top: S[c] = obs[c].T[::-1]
+    paper = np.rot90(obs, axes=(1, 2))
+    assert np.array_equal(paper[4], walls[::-1].astype(np.float32))
+    assert np.array_equal(paper, obs.transpose(0, 2, 1)[:, ::-1])
+    assert paper.shape == (5, n, n)
+
+
+def test_an_npz_of_maze_set_save_is_a_test_set(tmp_path: Path) -> None:
+    original = maze_test_set(15, 3, seed=8)
+    original.save(tmp_path / "set.npz")
+    env = MazeEnv(size=15, test_set=tmp_path / "set.npz", maze_index=2)
+    env.reset(seed=0)
+    assert np.array_equal(env.walls, original.walls[2])
+    assert env.true_pose == tuple(original.starts[2].tolist())
+
+
+def test_a_file_of_another_size_or_a_bad_file_is_refused_at_construction(tmp_path: Path) -> None:
+    path = anl_file(tmp_path / "m7.npy", [(1, 1, 0)])
+    with pytest.raises(ValueError, match=r"test_set .*m7\.npy holds 7 x 7 mazes but size=15; "
+                                         r"pass size=7"):
+        MazeEnv(size=15, test_set=str(path))
+    with pytest.raises(ValueError, match=r"maze_index must be in \[0, 1\), got 1"):
+        MazeEnv(test_set=path, maze_index=1)
+    bad = anl_file(tmp_path / "bad.npy", [(0, 0, 0)])  # a start on the border wall
+    with pytest.raises(MapFileError, match=r"test_set: .*bad\.npy: maze 0 .* starts on a wall"):
+        gym.make("ActiveLoc/Maze-v0", test_set=str(bad))
+    with pytest.raises(MapFileNotFoundError, match=r"test_set: .*missing\.npy: no such maze"):
+        MazeEnv(test_set=tmp_path / "missing.npy")
+    with pytest.raises(ValueError, match=r"test_set: .*maze\.csv: a maze file must end in"):
+        MazeEnv(test_set=str(tmp_path / "maze.csv"))
+    with pytest.raises(ValueError, match=r"test_set must be a MazeSet, the path of a maze file"):
+        MazeEnv(test_set=b"m7.npy")  # type: ignore[arg-type]
+
+
+def test_a_maze_index_option_is_bounded_by_the_files_length(tmp_path: Path) -> None:
+    env = MazeEnv(test_set=anl_file(tmp_path / "m7.npy", [(1, 1, 0), (5, 1, 1)]))
+    env.reset(options={"maze_index": 1})
+    assert env.maze_index == 1 and env.true_pose == (1, 1, 1)
+    with pytest.raises(ValueError, match=r"must be an integer in \[0, 2\) \(the test set's "
+                                         r"length\), got 2"):
+        env.reset(options={"maze_index": 2})
+
+
+def test_a_file_test_set_survives_the_vector_env_and_pickling(tmp_path: Path) -> None:
+    import pickle
+
+    path = anl_file(tmp_path / "m7.npy", [(1, 1, 0), (5, 1, 1), (3, 3, 3)])
+    envs = gym.make_vec("ActiveLoc/Maze-v0", 2, vectorization_mode="vector_entry_point",
+                        test_set=str(path))
+    obs, _ = envs.reset(seed=0)
+    assert obs.shape == (2, 5, 7, 7)
+    assert np.array_equal(obs[0, 4], anl_map()[::-1].T.astype(np.float32))
+    envs.close()
+    env = MazeEnv(test_set=path)
+    env.reset()
+    clone = pickle.loads(pickle.dumps(env))
+    assert clone.test_set.source == str(path) and not clone.test_set.walls.flags.writeable
+    assert clone.step(2)[4]["depth"] == env.step(2)[4]["depth"]
+
+
+# --- the planner view's depth -----------------------------------------------------------------
+
+
+@pytest.mark.parametrize("observation", ["belief", "flat"])
+def test_planner_view_depth_is_the_reading_the_env_just_made(observation: str) -> None:
+    env = MazeEnv(size=15, observation=observation, episode_length=20)
+    rng = np.random.default_rng(1)
+    obs, info = env.reset(seed=9)
+    for t in range(21):
+        view = env.planner_view()
+        assert isinstance(view.depth, int)
+        assert view.depth == info["depth"]
+        x, y, h = env.true_pose
+        assert view.depth == int(view.sensor.table[x, y, h]) == walk_depth(env.walls, x, y, h)
+        assert 1 <= view.depth <= 15 - 2
+        if observation == "flat":
+            assert obs[-2] == np.float32(view.depth / (15 - 2))
+        if t < 20:
+            obs, _, _, _, info = env.step(int(rng.integers(3)))

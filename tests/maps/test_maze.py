@@ -192,6 +192,21 @@ def test_maze_set_validates_its_arrays() -> None:
     assert len(MazeSet(walls, np.array([[1, 1, 3]]))) == 1
 
 
+def test_maze_set_errors_name_the_first_bad_entry_and_source_pickles() -> None:
+    walls = np.stack([eller_maze(7, np.random.default_rng(k)) for k in range(3)])
+    with pytest.raises(ValueError, match=r"entry 2, \(0, 0, 1\), is on a wall"):
+        MazeSet(walls, np.array([[1, 1, 0], [1, 1, 1], [0, 0, 1]]))
+    with pytest.raises(ValueError, match=r"entry 1 is \(7, 1, 0\)"):
+        MazeSet(walls, np.array([[1, 1, 0], [7, 1, 0], [1, 1, 0]]))
+    maze_set = MazeSet(walls, np.ones((3, 3), dtype=np.int64), source="mazes.npz")
+    clone = pickle.loads(pickle.dumps(maze_set))
+    assert clone.source == "mazes.npz" and not clone.starts.flags.writeable
+    old_state = {k: v for k, v in maze_set.__dict__.items() if k != "source"}
+    restored = MazeSet.__new__(MazeSet)
+    restored.__setstate__(old_state)  # pickled before the source field existed
+    assert restored.source is None
+
+
 def test_maze_to_grid_is_the_same_maze_at_one_metre_per_cell() -> None:
     walls = eller_maze(7, np.random.default_rng(8))
     grid = maze_to_grid(walls)

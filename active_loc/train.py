@@ -231,6 +231,9 @@ def make_env(env_id: str, **kwargs: Any) -> gym.Env:
 
 
 def _is_scalar(value: Any) -> bool:
+    """Python and numpy scalars, and 0-d arrays (the env's flags)."""
+    if isinstance(value, np.ndarray):
+        return value.ndim == 0
     return isinstance(value, (bool, int, float, np.bool_, np.number))
 
 

@@ -107,3 +107,32 @@ def test_train_refuses_bad_arguments_in_one_line(
         main(["train", "--env", "ActiveLoc/Maze-v0", "--total-steps", "64", *args])
     assert exit_info.value.code == 2
     assert match in one_error_line(capsys, "train")
+
+
+def test_evaluate_refuses_a_torch_thread_count_below_one(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main([*EVALUATE, "--out", str(tmp_path), "--torch-threads", "0"]) == 2
+    assert "--torch-threads must be >= 1, got 0" in one_error_line(capsys, "evaluate")
+
+
+@pytest.mark.parametrize("threads", [None, 2])
+def test_evaluate_runs_sb3_agents_on_the_torch_threads_asked_for(
+    threads: int | None, tmp_path: Path
+) -> None:
+    import torch
+    from stable_baselines3 import PPO
+
+    env = gym.make("ActiveLoc/LandmarkEKF-v0")
+    PPO("MlpPolicy", env, n_steps=16, batch_size=16, seed=0, device="cpu").save(
+        tmp_path / "model.zip")
+    before = torch.get_num_threads()
+    option = [] if threads is None else ["--torch-threads", str(threads)]
+    try:
+        torch.set_num_threads(3)
+        assert main(["evaluate", "--env", "ActiveLoc/LandmarkEKF-v0", "--episodes", "1",
+                     "--agents", f"sb3:{tmp_path / 'model.zip'}", "--out",
+                     str(tmp_path / "eval"), *option]) == 0
+        assert torch.get_num_threads() == (1 if threads is None else threads)
+    finally:
+        torch.set_num_threads(before)

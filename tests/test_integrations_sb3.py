@@ -121,7 +121,7 @@ def test_eval_callback_records_success_without_a_monitor_warning(tmp_path: Path)
     assert not [m for m in messages if "Monitor" in m or "same type" in m], messages
     assert len(callback.evaluations_successes) == 2  # at 64 and 128 steps
     assert all(len(successes) == 4 for successes in callback.evaluations_successes)
-    assert all(isinstance(s, bool) for s in callback.evaluations_successes[0])
+    assert all(np.asarray(s).dtype == np.bool_ for s in callback.evaluations_successes[0])
     with np.load(tmp_path / "evaluations.npz") as data:
         assert data["successes"].shape == (2, 4)
     # without VecMonitor, SB3's check does warn (so the check above means something)

@@ -280,14 +280,11 @@ def localization_info(
     outcome: StepOutcome, collisions: int, association_accuracy: float, reward: RewardSettings
 ) -> dict[str, Any]:
     """A step's info dict (:func:`~active_loc.envs.outcome.step_info` and the localization
-    envs' own keys): what the single env returns, and what the vector env hands out per
-    sub-env (``ActiveLocalizationVectorEnv.step_with_info_dicts``)."""
-    info = step_info(outcome, collisions, reward)
-    info["n_visible"] = outcome.n_visible
-    info["nis"] = outcome.nis
-    info["kidnapped"] = outcome.kidnapped
-    info["association_accuracy"] = association_accuracy
-    return info
+    envs' own keys, typed by its rule): what the single env returns, and what the vector env
+    hands out per sub-env (``ActiveLocalizationVectorEnv.step_with_info_dicts``)."""
+    return step_info(outcome, collisions, reward, n_visible=outcome.n_visible,
+                     nis=outcome.nis, kidnapped=outcome.kidnapped,
+                     association_accuracy=association_accuracy)
 
 
 def build_frame(

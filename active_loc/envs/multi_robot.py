@@ -592,11 +592,12 @@ class MultiRobotLocalizationEnv(ParallelEnv):
             bool(collided[i]), 0.0, bool(self._localized[i]), bool(self._success[i]),
             bool(self._localized[i]), False, int(self._visible[i].sum()), math.nan,
         )
-        info = step_info(outcome, int(self._collisions[i]), self._reward)
-        info["fused"] = bool(self._fused_pairs[i].any())
-        info["detected"] = [self.possible_agents[j] for j in np.flatnonzero(self._det_seen[i])]
-        info["n_visible"] = outcome.n_visible
-        return info
+        return step_info(
+            outcome, int(self._collisions[i]), self._reward,
+            fused=bool(self._fused_pairs[i].any()),
+            detected=[self.possible_agents[j] for j in np.flatnonzero(self._det_seen[i])],
+            n_visible=outcome.n_visible,
+        )
 
     # -- rendering ------------------------------------------------------------------------------
 

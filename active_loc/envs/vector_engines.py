@@ -1,7 +1,8 @@
 """What steps the members of :class:`~active_loc.envs.vector_env.ActiveLocalizationVectorEnv`.
 
 Three engines with one interface (``obs``, ``reset_member``, ``reset_members``, ``step``,
-``infos``, ``info_dicts``, ``frame``, ``workers``):
+``infos``, ``info_dicts``, ``frame``, ``workers``, and per member ``np_random``,
+``np_random_seed``, ``set_np_random``; ``set_specs``):
 
 * :class:`BatchedLandmarkEngine`: the EKF landmark ids. One :class:`LandmarkCore` with
   B = n members advances the whole batch in one numba kernel call (spread over numba's
@@ -19,6 +20,11 @@ Three engines with one interface (``obs``, ``reset_member``, ``reset_members``, 
 
 Either way member ``b`` draws only from its own Generator, in the same order as a single env
 seeded the same, so the vector env reproduces n single envs exactly.
+
+The batched info (``infos``) holds arrays ``(n,)`` only, in the dtypes of
+:func:`~active_loc.envs.outcome.info_dtype`: a single env's keys, its ``reward_terms`` dict as
+the flat ``reward_<term>`` arrays it also carries. Readers that stack every key (TorchRL's
+``GymWrapper`` with SAME_STEP autoreset) take no nested dict.
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ from typing import Any
 import gymnasium as gym
 import numba
 import numpy as np
+from gymnasium.envs.registration import EnvSpec
 from gymnasium.utils import seeding
 from numpy.typing import NDArray
 
@@ -58,13 +65,14 @@ from active_loc.envs.localization_env import (
     reward_settings,
 )
 from active_loc.envs.maze_env import MazeEnv
+from active_loc.envs.outcome import flat_reward_terms, info_dtype
 from active_loc.envs.rewards import step_reward
 from active_loc.parallel import set_thread_count
 
 #: the fewest members a worker thread of the batched engine steps (fewer: one thread)
 MIN_ROWS_PER_WORKER = 64
 
-#: info dict of a batch: key -> array (n,) (or a nested dict of them), plus ``"_key"`` masks
+#: info dict of a batch: key -> array (n,), plus ``"_key"`` masks
 BatchInfo = dict[str, Any]
 
 
@@ -136,7 +144,7 @@ class BatchedLandmarkEngine:
         self.num_envs = num_envs
         self.single_observation_space = template.observation_space
         self.single_action_space = template.action_space
-        self.title = template.spec.id if template.spec is not None else "ActiveLocalization"
+        self.title = template.spec.id if template.spec is not None else type(template).__name__
         self._continuous = template.config.action_type == "continuous"
         self._primitives = self.core.models.primitives
         self._reward = reward_settings(template.config)
@@ -145,6 +153,7 @@ class BatchedLandmarkEngine:
         self._collision_penalty = self._reward.collision_penalty
         self._terminate = bool(template.config.terminate_when_localized)
         self.rngs: list[np.random.Generator | None] = [None] * num_envs
+        self.seeds: list[int | None] = [None] * num_envs  # as Env.np_random_seed has them
         self.collisions = np.zeros(num_envs, dtype=np.int64)
         self.steps = np.zeros(num_envs, dtype=np.int64)
         self._render_envs = render_envs
@@ -160,7 +169,7 @@ class BatchedLandmarkEngine:
     def reset_member(self, b: int, seed: int | None, options: dict[str, Any] | None) -> None:
         """New episode of member ``b``; its Generator is (re)seeded as ``Env.reset`` does."""
         if seed is not None or self.rngs[b] is None:
-            self.rngs[b] = seeding.np_random(seed)[0]
+            self.rngs[b], self.seeds[b] = seeding.np_random(seed)
         rng = self.rngs[b]
         assert rng is not None
         self.core.reset_member(b, rng)
@@ -174,6 +183,29 @@ class BatchedLandmarkEngine:
         """Autoreset the members in ``rows`` (their Generators go on)."""
         for b in rows:
             self.reset_member(b, None, None)
+
+    def np_random(self, b: int) -> np.random.Generator:
+        """Member ``b``'s Generator (made unseeded if it has none yet, as ``Env`` does)."""
+        if self.rngs[b] is None:
+            self.rngs[b], self.seeds[b] = seeding.np_random()
+        rng = self.rngs[b]
+        assert rng is not None
+        return rng
+
+    def np_random_seed(self, b: int) -> int:
+        """The seed of member ``b``'s Generator (-1 once one was set, as ``Env`` has it)."""
+        self.np_random(b)
+        seed = self.seeds[b]
+        assert seed is not None
+        return seed
+
+    def set_np_random(self, b: int, rng: np.random.Generator) -> None:
+        self.rngs[b], self.seeds[b] = rng, -1
+
+    def set_specs(self, specs: Sequence[EnvSpec | None]) -> None:
+        """The members' single-env specs (their frames are titled with the id)."""
+        spec = specs[0]
+        self.title = spec.id if spec is not None else "ActiveLocalizationEnv"
 
     def step(
         self, actions: Any, active: NDArray[np.bool_], autoreset: Sequence[int] = ()
@@ -202,7 +234,7 @@ class BatchedLandmarkEngine:
         return rewards, terminated, np.zeros(n, dtype=np.bool_)
 
     def infos(self, mask: NDArray[np.bool_]) -> BatchInfo:
-        """The members' info arrays (the keys of a single env's info, same values), with
+        """The members' info arrays (the flat keys of a single env's info, same values), with
         ``mask`` as every ``"_key"`` (one read-only array shared by the keys): all n rows are
         filled, whatever the mask. The arrays are rows of three fresh blocks, one per dtype,
         filled by one kernel call."""
@@ -223,7 +255,7 @@ class BatchedLandmarkEngine:
             "localized": flags[0],
             "is_success": flags[1],
             "collisions": counts[0],
-            "reward_terms": with_masks(terms, mask),
+            **flat_reward_terms(terms),
             "n_visible": counts[1],
             "nis": reals[3],
             "kidnapped": flags[2],
@@ -293,6 +325,20 @@ class BatchedMazeEngine:
         for b in rows:
             self.envs[b].reset()
 
+    def np_random(self, b: int) -> np.random.Generator:
+        return self.envs[b].np_random
+
+    def np_random_seed(self, b: int) -> int:
+        return self.envs[b].np_random_seed
+
+    def set_np_random(self, b: int, rng: np.random.Generator) -> None:
+        self.envs[b].np_random = rng
+
+    def set_specs(self, specs: Sequence[EnvSpec | None]) -> None:
+        """The members' single-env specs (as ``gymnasium.make`` would have set them)."""
+        for env, spec in zip(self.envs, specs, strict=True):
+            env.spec = spec
+
     def step(
         self, actions: Any, active: NDArray[np.bool_], autoreset: Sequence[int] = ()
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_]]:
@@ -310,28 +356,30 @@ class BatchedMazeEngine:
         return rewards, terminated, truncated
 
     def infos(self, mask: NDArray[np.bool_]) -> BatchInfo:
-        """The members' info arrays (a single env's keys and values), with ``mask`` as every
-        ``"_key"``: all n rows are filled, whatever the mask."""
+        """The members' info arrays (the flat keys of a single env's info, same values), with
+        ``mask`` as every ``"_key"``: all n rows are filled, whatever the mask."""
         state = self.core.state
         mask = mask.copy()
         mask.flags.writeable = False
         n = self.num_envs
         reward = self._reward
-        terms = {reward.name: state["uncertainty"].copy(),
+        terms = {reward.name: state["uncertainty"],
                  "step_cost": np.full(n, -reward.step_cost),
                  "collision": np.where(state["collided"], -reward.collision_penalty, 0.0)}
         info: BatchInfo = {  # the single env's keys, in its order
-            "pose_error": state["pose_error"].copy(),
-            "heading_error": state["heading_error"].copy(),
-            "entropy": state["entropy"].copy(),
-            "localized": state["localized"].copy(),
-            "is_success": state["success"].copy(),
-            "collisions": state["collisions"].copy(),
-            "reward_terms": with_masks(terms, mask),
-            "depth": state["depth"].copy(),
-            "max_prob": state["max_prob"].copy(),
+            "pose_error": state["pose_error"],
+            "heading_error": state["heading_error"],
+            "entropy": state["entropy"],
+            "localized": state["localized"],
+            "is_success": state["success"],
+            "collisions": state["collisions"],
+            **flat_reward_terms(terms),
+            "depth": state["depth"],
+            "max_prob": state["max_prob"],
         }
-        return with_masks(info, mask)
+        # copies (the state changes on the next step) in the dtypes of the info rule
+        typed = {key: np.array(value, dtype=info_dtype(value)) for key, value in info.items()}
+        return with_masks(typed, mask)
 
     def info_dicts(self, rows: list[int] | None = None) -> list[dict[str, Any]]:
         """The info dicts of the members in ``rows`` (None: all), as single envs return them."""
@@ -384,6 +432,20 @@ class MemberEngine:
         """Autoreset the members in ``rows`` (their Generators go on), on the threads."""
         self._run([(b, None) for b in rows])
 
+    def np_random(self, b: int) -> np.random.Generator:
+        return self.envs[b].np_random
+
+    def np_random_seed(self, b: int) -> int:
+        return self.envs[b].np_random_seed
+
+    def set_np_random(self, b: int, rng: np.random.Generator) -> None:
+        self.envs[b].np_random = rng
+
+    def set_specs(self, specs: Sequence[EnvSpec | None]) -> None:
+        """The members' single-env specs (as ``gymnasium.make`` would have set them)."""
+        for env, spec in zip(self.envs, specs, strict=True):
+            env.spec = spec
+
     def step(
         self, actions: Any, active: NDArray[np.bool_], autoreset: Sequence[int] = ()
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_]]:
@@ -431,7 +493,8 @@ class MemberEngine:
             env.close()
 
     def infos(self, mask: NDArray[np.bool_]) -> BatchInfo:
-        """The masked members' last info dicts, stacked (gymnasium's vector info layout)."""
+        """The masked members' last info dicts, stacked (gymnasium's vector info layout, the
+        nested ``reward_terms`` left to its flat keys)."""
         out: BatchInfo = {}
         for b in np.flatnonzero(mask):
             add_member_info(out, self._infos[b], int(b), self.num_envs)
@@ -496,7 +559,7 @@ def info_columns(
 
 
 def with_masks(info: dict[str, Any], mask: NDArray[np.bool_]) -> BatchInfo:
-    """``info`` with ``mask`` as the ``"_key"`` of every key (nested dicts included)."""
+    """``info`` with ``mask`` as the ``"_key"`` of every key."""
     out: BatchInfo = {}
     for key, value in info.items():
         out[key] = value
@@ -505,27 +568,17 @@ def with_masks(info: dict[str, Any], mask: NDArray[np.bool_]) -> BatchInfo:
 
 
 def add_member_info(out: BatchInfo, info: dict[str, Any], b: int, n: int) -> None:
-    """Write member ``b``'s info into the stacked ``out``: Python bool, int and float become
-    bool, int64 and float64 arrays (n,), nested dicts recurse, anything else an object array;
+    """Write member ``b``'s info into the stacked ``out``: scalars become arrays (n,) in the
+    dtype of :func:`~active_loc.envs.outcome.info_dtype`, anything else an object array;
+    nested dicts (``reward_terms``, whose flat keys the info has too) are left out;
     ``"_key"`` marks the members that have the key."""
     for key, value in info.items():
         if isinstance(value, dict):
-            add_member_info(out.setdefault(key, {}), value, b, n)
-        else:
-            if key not in out:
-                out[key] = np.zeros(n, dtype=_info_dtype(value))
-            out[key][b] = value
+            continue
+        if key not in out:
+            if isinstance(value, np.ndarray) and value.ndim > 0:
+                raise TypeError("array-valued info entries are not stacked")  # none exist
+            out[key] = np.zeros(n, dtype=info_dtype(value) or object)
+        out[key][b] = value
         mask = out.setdefault(f"_{key}", np.zeros(n, dtype=np.bool_))
         mask[b] = True
-
-
-def _info_dtype(value: Any) -> Any:
-    if isinstance(value, (bool, np.bool_)):
-        return np.bool_
-    if isinstance(value, (int, np.integer)):
-        return np.int64
-    if isinstance(value, (float, np.floating)):
-        return np.float64
-    if isinstance(value, np.ndarray):
-        raise TypeError("array-valued info entries are not stacked")  # none exist today
-    return object

@@ -9,16 +9,25 @@ returns it. Sub-env i is seeded with seed + i and reproduces, step for step, a s
 made with the same kwargs and seeded seed + i (observations, rewards, flags and infos). The
 EKF landmark ids and the maze step the whole batch in one kernel call; the others step their
 members on worker threads (:mod:`active_loc.envs.vector_engines`).
+
+The sub-envs are rows of batched arrays, not env objects, so ``call``, ``get_attr`` and
+``set_attr`` (gymnasium's ``SyncVectorEnv`` API) serve a fixed set of names, the same for
+every id: each returns one value per sub-env, equal to what that sub-env's single env would
+give (:data:`MEMBER_ATTRIBUTES`, :data:`MEMBER_METHODS`); only ``np_random`` can be set per
+sub-env.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
+from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from gymnasium.envs.registration import EnvSpec
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
@@ -36,6 +45,32 @@ from active_loc.envs.vector_engines import (
 
 #: the most worker threads (more than any machine's cores, fewer than would exhaust it)
 MAX_WORKERS = 1024
+
+#: single-env attributes that ``get_attr`` (and ``call``) read per sub-env
+MEMBER_ATTRIBUTES = ("spec", "config", "metadata", "render_mode", "observation_space",
+                     "action_space", "np_random", "np_random_seed")
+#: single-env methods that ``call`` runs per sub-env
+MEMBER_METHODS = ("render",)
+#: member attributes that ``set_attr`` sets per sub-env
+SETTABLE_ATTRIBUTES = ("np_random",)
+
+#: keywords of the vector env's spec that a single env does not take (left out of a
+#: sub-env's spec, whose ``max_episode_steps`` is the spec's field, as ``gymnasium.make`` has it)
+VECTOR_KWARGS = frozenset({"num_envs", "vectorization_mode", "vector_kwargs", "wrappers",
+                           "autoreset_mode", "render_envs", "workers", "max_episode_steps"})
+
+_FIXED = ("is fixed when the vector env is built: the sub-envs share one configuration and "
+          "one batched simulator (make a new vector env to change it)")
+#: why set_attr refuses a member attribute
+_NOT_SETTABLE = {
+    **dict.fromkeys(("spec", "config", "metadata", "render_mode", "observation_space",
+                     "action_space"), _FIXED),
+    "np_random_seed": ("is read-only: seed the sub-envs with reset(seed=...) or give them "
+                       "Generators with set_attr('np_random', [...])"),
+    "render": "is a method",
+}
+#: single-env methods the sub-envs have only together, through the vector env
+_VECTOR_METHODS = ("reset", "step", "close")
 
 
 class ActiveLocalizationVectorEnv(VectorEnv):
@@ -63,7 +98,25 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         **env_kwargs: the single env's kwargs (``scenario`` and config fields, or the maze's).
 
     ``info`` is a dict of arrays ``(n,)`` with gymnasium's ``"_key"`` masks; its keys and
-    dtypes are the same on every step (a single env's keys; float64, int64 or bool).
+    dtypes are the same on every step: a single env's keys (float64, int64 or bool), its
+    nested ``reward_terms`` dict as the flat ``reward_<term>`` arrays it also carries (so that
+    readers stacking every key, such as TorchRL's ``GymWrapper`` with SAME_STEP, can).
+
+    ``call(name)``, ``get_attr(name)`` and ``set_attr(name, values)`` work as in gymnasium's
+    ``SyncVectorEnv``, with one entry per sub-env, for the names a single env has:
+
+    | name                | one entry per sub-env                                         |
+    |---------------------|---------------------------------------------------------------|
+    | ``spec``            | the single env's spec (this env's, without its vector kwargs) |
+    | ``config``          | the single env's config (one object shared by the sub-envs)  |
+    | ``metadata``, ``observation_space``, ``action_space`` | the single env's           |
+    | ``render_mode``     | this env's for the first ``render_envs`` sub-envs, else None  |
+    | ``np_random``       | the sub-env's Generator; ``set_attr`` gives each its own     |
+    | ``np_random_seed``  | the seed of its Generator (-1 once ``set_attr`` set one)      |
+    | ``render`` (method) | its frame ``(H, W, 3)`` uint8, None past ``render_envs``      |
+
+    ``set_attr`` of any other name, and ``call`` of ``reset``, ``step`` or ``close``, raise
+    ``AttributeError`` saying why; an unknown name raises ``AttributeError`` naming it.
     """
 
     metadata: dict[str, Any] = {  # noqa: RUF012
@@ -71,6 +124,8 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         "render_fps": 10,
         "autoreset_mode": AutoresetMode.NEXT_STEP,
     }
+
+    _spec: EnvSpec | None = None
 
     def __init__(
         self,
@@ -106,6 +161,8 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
 
         template = env_class(**env_kwargs)
+        self._single_config = template.config
+        self._single_metadata = template.metadata
         self.engine: BatchedLandmarkEngine | BatchedMazeEngine | MemberEngine
         self._renderer: Any = None
         if workers is None:
@@ -139,6 +196,17 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         self._has_reset = False
 
     # -- gymnasium API ----------------------------------------------------------------------
+
+    @property
+    def spec(self) -> EnvSpec | None:
+        """The spec ``make_vec`` made this env from (None when made directly)."""
+        return self._spec
+
+    @spec.setter
+    def spec(self, spec: EnvSpec | None) -> None:
+        # make_vec sets it after __init__: hand the sub-envs their single-env specs then
+        self._spec = spec
+        self.engine.set_specs([self._member_spec(b) for b in range(self.num_envs)])
 
     def reset(
         self,
@@ -222,6 +290,47 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         frames = [self._member_frame(b) for b in range(self.render_envs)]
         return tile_frames(frames)
 
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
+        """``name`` of every sub-env: the method's result (``render``) or the attribute's
+        value (the args are then ignored, as ``SyncVectorEnv`` does); a tuple of n."""
+        if name in MEMBER_METHODS:
+            if args or kwargs:
+                raise TypeError(f"the sub-envs' {name}() takes no arguments")
+            return self._render_members()
+        if name in _VECTOR_METHODS:
+            raise AttributeError(
+                f"the sub-envs of {type(self).__name__} have no {name}() of their own: they "
+                f"are stepped, reset and closed together, with this vector env's {name}()"
+                + (" (reset(options={'reset_mask': mask}) resets some)" if name == "reset"
+                   else "")
+            )
+        getter = self._member_getters().get(name)
+        if getter is None:
+            raise AttributeError(self._unknown(name))
+        return tuple(getter(b) for b in range(self.num_envs))
+
+    def get_attr(self, name: str) -> tuple[Any, ...]:
+        """``name`` of every sub-env, a tuple of n (``call(name)``, as ``SyncVectorEnv``)."""
+        return self.call(name)
+
+    def set_attr(self, name: str, values: list[Any] | tuple[Any, ...] | Any) -> None:
+        """Set ``name`` of every sub-env: ``values`` one per sub-env (a list or tuple of n),
+        or one value for all. Only ``np_random`` can be set, one Generator per sub-env."""
+        if name not in SETTABLE_ATTRIBUTES:
+            reason = _NOT_SETTABLE.get(name)
+            if reason is None:
+                raise AttributeError(self._unknown(name))
+            raise AttributeError(f"set_attr({name!r}): the sub-envs' {name} {reason}")
+        n = self.num_envs
+        if not isinstance(values, (list, tuple)):
+            values = [values] * n
+        if len(values) != n:
+            raise ValueError(
+                "Values must be a list or tuple with length equal to the number of "
+                f"environments. Got `{len(values)}` values for {n} environments."
+            )
+        self._set_generators(list(values))
+
     def close_extras(self, **kwargs: Any) -> None:
         self.engine.close()
         if self._renderer is not None:
@@ -275,6 +384,68 @@ class ActiveLocalizationVectorEnv(VectorEnv):
 
             self._renderer = LandmarkRenderer()
         return self._renderer.render_rgb(engine.frame(b))
+
+    def _member_getters(self) -> dict[str, Callable[[int], Any]]:
+        """Member attribute name -> its value for sub-env b."""
+        engine = self.engine
+        return {
+            "spec": self._member_spec,
+            "config": lambda b: self._single_config,
+            "metadata": lambda b: self._single_metadata,
+            "render_mode": self._member_render_mode,
+            "observation_space": lambda b: self.single_observation_space,
+            "action_space": lambda b: self.single_action_space,
+            "np_random": engine.np_random,
+            "np_random_seed": engine.np_random_seed,
+        }
+
+    def _member_spec(self, b: int) -> EnvSpec | None:
+        """The spec ``gymnasium.make`` gives sub-env b's single env (None when this env was
+        not made by ``make_vec``)."""
+        spec = self.spec
+        if spec is None:
+            return None
+        kwargs = {key: value for key, value in spec.kwargs.items() if key not in VECTOR_KWARGS}
+        if self._member_render_mode(b) is None:
+            kwargs.pop("render_mode", None)
+        limit = spec.kwargs.get("max_episode_steps", spec.max_episode_steps)
+        return dataclasses.replace(spec, kwargs=kwargs, max_episode_steps=limit)
+
+    def _member_render_mode(self, b: int) -> str | None:
+        return self.render_mode if b < self.render_envs else None
+
+    def _render_members(self) -> tuple[NDArray[np.uint8] | None, ...]:
+        """Each sub-env's frame (None for those past ``render_envs``)."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
+            return (None,) * self.num_envs
+        if not self._has_reset:
+            raise RuntimeError("call reset() before render()")
+        return tuple(self._member_frame(b) if b < self.render_envs else None
+                     for b in range(self.num_envs))
+
+    def _set_generators(self, rngs: list[Any]) -> None:
+        """Give sub-env b the Generator ``rngs[b]``; checks them all before setting any."""
+        for b, rng in enumerate(rngs):
+            if not isinstance(rng, np.random.Generator):
+                raise TypeError(
+                    f"set_attr('np_random'): sub-env {b} needs a numpy.random.Generator, got "
+                    f"{type(rng).__name__}"
+                )
+        if len({id(rng) for rng in rngs}) < len(rngs):
+            raise ValueError(
+                "set_attr('np_random'): each sub-env needs a Generator of its own (one shared "
+                "Generator would make the draws depend on the order the sub-envs take them)"
+            )
+        for b, rng in enumerate(rngs):
+            self.engine.set_np_random(b, rng)
+
+    def _unknown(self, name: str) -> str:
+        known = ", ".join(MEMBER_ATTRIBUTES + MEMBER_METHODS)
+        return (
+            f"the sub-envs of {type(self).__name__} have no attribute {name!r} (they are rows "
+            f"of one batched simulator; call and get_attr know {known})"
+        )
 
     def _member_seeds(self, seed: int | list[int | None] | None) -> list[int | None]:
         n = self.num_envs

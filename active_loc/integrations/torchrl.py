@@ -15,6 +15,14 @@
 ``GymWrapper`` (the base class of ``GymEnv``), reading the scalar info keys along;
 ``torchrl.envs.GymEnv(env_id)`` works too. With ``num_envs`` it wraps the package's native
 vector env (autoreset mode ``DISABLED``, which TorchRL resets by ``reset_mask``).
+
+TorchRL's own pieces work as well: ``GymWrapper`` over the native vector env made with
+``autoreset_mode`` ``SAME_STEP`` (TorchRL then reads every info key, and takes an ended step's
+observation and info from ``final_obs`` and ``final_info``) or ``DISABLED`` (TorchRL refuses
+``NEXT_STEP``), and ``torchrl.envs.libs.gym.default_info_dict_reader(keys)`` over any id: the
+info scalars are numpy values of fixed dtypes (float64, int64, 0-d bool arrays) and the
+reward terms are also flat keys (``"reward_info_gain"``, ...; see
+:mod:`active_loc.envs.outcome`).
 """
 
 from __future__ import annotations
@@ -49,11 +57,9 @@ DEFAULT_INFO_KEYS: Mapping[str, torch.dtype] = {
 
 
 class InfoReader(BaseInfoDictReader):
-    """Copies named scalar info entries (Python or numpy scalars, or ``(n,)`` arrays of a vector
-    env) into the step's tensordict as tensors of the env's batch shape.
-
-    TorchRL's ``default_info_dict_reader`` expects numpy values (it reads ``value.dtype``); the
-    ``ActiveLoc`` envs return Python scalars.
+    """Copies named scalar info entries (numpy or Python scalars, or ``(n,)`` arrays of a vector
+    env) into the step's tensordict as tensors of the env's batch shape, cast to the given
+    dtypes (TorchRL's ``default_info_dict_reader`` keeps the info's own dtypes instead).
     """
 
     def __init__(self, keys: Mapping[str, torch.dtype], batch_size: torch.Size) -> None:

@@ -27,13 +27,15 @@ from active_loc.maps import OccupancyGrid
 ENV_IDS = [env_id for env_id, _, _ in active_loc.ENV_IDS]
 LANDMARK = "ActiveLoc/LandmarkEKF-v0"
 TEXTBOOK = "ActiveLoc/Textbook-v0"
+#: info key -> its numpy dtype (reals float64 and counts int64 scalars, flags 0-d bool
+#: arrays: see active_loc/envs/outcome.py)
 INFO_TYPES = {
-    "pose_error": float,
-    "heading_error": float,
-    "entropy": float,
-    "is_success": bool,
-    "localized": bool,
-    "collisions": int,
+    "pose_error": np.float64,
+    "heading_error": np.float64,
+    "entropy": np.float64,
+    "is_success": np.bool_,
+    "localized": np.bool_,
+    "collisions": np.int64,
 }
 TELESCOPING = ("info_gain", "logdet", "trace")
 
@@ -62,13 +64,18 @@ def run_episode(env: gym.Env, seed: int, rng: np.random.Generator) -> list[tuple
 def assert_info_is_well_typed(info: dict[str, Any]) -> None:
     for key, kind in INFO_TYPES.items():
         assert key in info, key
-        assert type(info[key]) is kind, (key, type(info[key]))
+        value = info[key]
+        if kind is np.bool_:
+            assert isinstance(value, np.ndarray) and value.shape == (), (key, type(value))
+            assert value.dtype == np.bool_, (key, value.dtype)
+        else:
+            assert type(value) is kind, (key, type(value))
     terms = info["reward_terms"]
     assert isinstance(terms, dict)
     assert terms
     for name, value in terms.items():
         assert isinstance(name, str)
-        assert type(value) is float, (name, type(value))
+        assert type(value) is np.float64, (name, type(value))
         assert math.isfinite(value), name
     assert info["pose_error"] >= 0.0
     assert 0.0 <= info["heading_error"] <= math.pi

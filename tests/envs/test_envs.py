@@ -22,13 +22,16 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import active_loc
+from active_loc.envs.registration import DISCRETE_ENV_IDS
 
 _LOCALIZATION_IDS = [env_id for env_id, _, _ in active_loc.ENV_IDS]
+#: the discrete-action twins, tested equal to their base ids in test_registration.py
+_TWIN_IDS = [env_id for env_id, _, _ in DISCRETE_ENV_IDS]
 #: every id ``import active_loc`` registers: the ActiveLocalizationEnv ids, then the others
 ENV_IDS = _LOCALIZATION_IDS + sorted(
     env_id
     for env_id in gym.registry
-    if env_id.startswith("ActiveLoc/") and env_id not in _LOCALIZATION_IDS
+    if env_id.startswith("ActiveLoc/") and env_id not in _LOCALIZATION_IDS + _TWIN_IDS
 )
 ACTION_TYPES = ["continuous", "discrete"]
 #: ids that support only some action types (every other id supports both)

@@ -97,7 +97,7 @@ def test_landmark_ekf_with_unknown_correspondences_and_clutter_runs() -> None:
     for _ in range(50):
         obs, _, terminated, truncated, info = env.step(env.action_space.sample())
         assert env.observation_space.contains(obs)
-        assert type(info["association_accuracy"]) is float
+        assert type(info["association_accuracy"]) is np.float64
         assert 0.0 <= info["association_accuracy"] <= 1.0
         if terminated or truncated:
             break

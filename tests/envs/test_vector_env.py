@@ -2,7 +2,9 @@
 
 The reference is gymnasium's own ``SyncVectorEnv`` over single envs seeded seed + i: for every
 id and action type, and in each autoreset mode, the native vector env must give the same
-observations, rewards, flags and infos (values and dtypes), exactly.
+observations, rewards, flags and infos (values and dtypes), exactly. Its batched info holds
+arrays only: ``SyncVectorEnv``'s nested ``reward_terms`` is there as the flat ``reward_<term>``
+arrays, which ``SyncVectorEnv`` stacks too.
 """
 
 from __future__ import annotations
@@ -23,8 +25,10 @@ from tests.envs.test_envs import CASES, ENV_IDS, vector_actions
 N_ENVS = 3
 #: a short limit, so that every sub-env ends (and is reset) several times in a test
 LIMIT = 8
-#: ids stepped by one batched kernel call; every other id steps its members in turn
-BATCHED_IDS = {"ActiveLoc/Textbook-v0", "ActiveLoc/LandmarkEKF-v0"}
+#: ids stepped by one batched kernel call (and their discrete-action twins); every other id
+#: steps its members in turn
+BATCHED_BASE_IDS = ("ActiveLoc/Textbook-v0", "ActiveLoc/LandmarkEKF-v0")
+BATCHED_IDS = {*BATCHED_BASE_IDS, *(i.replace("-v0", "Discrete-v0") for i in BATCHED_BASE_IDS)}
 
 
 def make_pair(
@@ -43,9 +47,26 @@ def make_pair(
     return native, sync
 
 
+def without_nested_terms(sync: dict[str, Any]) -> dict[str, Any]:
+    """SyncVectorEnv's info without its nested ``reward_terms`` (and the same in
+    ``final_info``), after checking that the flat ``reward_<term>`` arrays hold its values."""
+    out = dict(sync)
+    if "reward_terms" in out:
+        terms = out.pop("reward_terms")
+        out.pop("_reward_terms")
+        for term, values in terms.items():
+            if not term.startswith("_"):
+                assert np.array_equal(values, sync[f"reward_{term}"]), term
+                assert np.array_equal(terms[f"_{term}"], sync[f"_reward_{term}"]), term
+    if "final_info" in out:
+        out["final_info"] = without_nested_terms(out["final_info"])
+    return out
+
+
 def assert_infos_equal(native: dict[str, Any], sync: dict[str, Any]) -> None:
     """Same keys and masks; where a mask is set, the same values and dtypes (rows a mask
     leaves out are not compared: SyncVectorEnv leaves zeros there)."""
+    sync = without_nested_terms(sync)
     assert native.keys() == sync.keys()
     for key, value in native.items():
         if key.startswith("_"):
@@ -101,7 +122,7 @@ def test_native_equals_single_envs(env_id: str, action_type: str) -> None:
 
 
 @pytest.mark.parametrize("action_type", ["continuous", "discrete"])
-@pytest.mark.parametrize("env_id", sorted(BATCHED_IDS))
+@pytest.mark.parametrize("env_id", BATCHED_BASE_IDS)
 def test_the_prange_kernel_on_one_thread_is_the_single_envs(env_id: str, action_type: str) -> None:
     """From PRANGE_MIN_MEMBERS sub-envs on, the batch steps in the prange kernel even with one
     worker; the single envs step in the plain loop: the same results."""
@@ -157,7 +178,7 @@ def test_the_outcome_reward_of_the_batched_kernel_is_the_single_envs() -> None:
         actions = vector_actions(native.action_space, rng)
         result = native.step(actions)
         assert_same(result, sync.step(actions))
-        terms = result[4]["reward_terms"]["outcome"]
+        terms = result[4]["reward_outcome"]
         outcomes += terms[result[2]].tolist()
     assert outcomes and set(outcomes) <= {3.0, -3.0}
 
@@ -368,3 +389,160 @@ def test_info_dicts_are_the_single_envs_infos(env_id: str) -> None:
     next_step.reset(seed=0)
     with pytest.raises(RuntimeError, match="needs autoreset_mode=SAME_STEP"):
         next_step.unwrapped.step_with_info_dicts(vector_actions(next_step.action_space, rng))
+
+
+# -- call, get_attr, set_attr ----------------------------------------------------------------
+
+#: one id per engine: the batched EKF kernel, the member threads, the batched maze
+ENGINE_IDS = ["ActiveLoc/LandmarkEKF-v0", "ActiveLoc/GridMarkov-v0", "ActiveLoc/Maze-v0"]
+#: the member attributes compared with SyncVectorEnv's sub-envs by value
+PLAIN_ATTRIBUTES = ("spec", "config", "metadata", "render_mode", "observation_space",
+                    "action_space")
+
+
+def rendering_pair(env_id: str) -> tuple[gym.vector.VectorEnv, gym.vector.VectorEnv]:
+    """(native, SyncVectorEnv) with every sub-env rendering."""
+    native = gym.make_vec(env_id, N_ENVS, vectorization_mode="vector_entry_point",
+                          render_mode="rgb_array", render_envs=N_ENVS, max_episode_steps=LIMIT)
+    sync = gym.make_vec(env_id, N_ENVS, vectorization_mode="sync", render_mode="rgb_array",
+                        max_episode_steps=LIMIT)
+    return native, sync
+
+
+def assert_same_generators(native: Any, sync: Any) -> None:
+    states = [g.bit_generator.state for g in native.get_attr("np_random")]
+    assert states == [g.bit_generator.state for g in sync.get_attr("np_random")]
+
+
+@pytest.mark.parametrize("env_id", ENGINE_IDS)
+def test_get_attr_and_call_are_sync_vector_envs(env_id: str) -> None:
+    """Every member attribute, the Generators and seeds, and the frames of call("render")
+    equal SyncVectorEnv's sub-envs', before and after stepping."""
+    native, sync = rendering_pair(env_id)
+    for name in PLAIN_ATTRIBUTES:
+        values = native.get_attr(name)
+        assert isinstance(values, tuple) and len(values) == N_ENVS, name
+        assert values == sync.get_attr(name), name
+        assert native.call(name) == values, name
+    assert native.get_attr("spec")[0].max_episode_steps == LIMIT
+    assert_same(native.reset(seed=4), sync.reset(seed=4))
+    assert native.get_attr("np_random_seed") == sync.get_attr("np_random_seed") == (4, 5, 6)
+    rng = np.random.default_rng(4)
+    for _ in range(LIMIT + 1):  # through an autoreset
+        actions = vector_actions(native.action_space, rng)
+        assert_same(native.step(actions), sync.step(actions))
+    assert_same_generators(native, sync)
+    frames, reference = native.call("render"), sync.call("render")
+    assert isinstance(frames, tuple) and len(frames) == N_ENVS
+    for frame, expected in zip(frames, reference, strict=True):
+        assert frame.dtype == np.uint8
+        np.testing.assert_array_equal(frame, expected)
+    np.testing.assert_array_equal(native.get_attr("render")[1], frames[1])  # as SyncVectorEnv
+
+
+@pytest.mark.parametrize("env_id", ENGINE_IDS)
+def test_a_sub_env_spec_makes_its_single_env(env_id: str) -> None:
+    native = gym.make_vec(env_id, 2, vectorization_mode="vector_entry_point", workers=1,
+                          autoreset_mode=AutoresetMode.SAME_STEP)
+    obs, _ = native.reset(seed=8)
+    for b, spec in enumerate(native.get_attr("spec")):
+        assert not set(spec.kwargs) & {"num_envs", "workers", "autoreset_mode"}
+        single = gym.make(spec)
+        assert single.spec == spec
+        np.testing.assert_array_equal(single.reset(seed=8 + b)[0], obs[b])
+    assert ActiveLocalizationVectorEnv(2).get_attr("spec") == (None, None)  # not made by id
+
+
+def test_call_render_past_render_envs_and_without_a_render_mode() -> None:
+    native = gym.make_vec("ActiveLoc/LandmarkEKF-v0", N_ENVS,
+                          vectorization_mode="vector_entry_point", render_mode="rgb_array")
+    assert native.get_attr("render_mode") == ("rgb_array", None, None)
+    with pytest.raises(RuntimeError, match="reset"):
+        native.call("render")
+    native.reset(seed=0)
+    frame, *rest = native.call("render")
+    np.testing.assert_array_equal(frame, native.render())  # render_envs=1: the first frame
+    assert rest == [None, None]
+    with pytest.raises(TypeError, match="no arguments"):
+        native.call("render", "human")
+    plain = gym.make_vec("ActiveLoc/LandmarkEKF-v0", 2, vectorization_mode="vector_entry_point")
+    plain.reset(seed=0)
+    with pytest.warns(UserWarning, match="render_mode"):
+        assert plain.call("render") == (None, None)
+
+
+@pytest.mark.parametrize("env_id", ENGINE_IDS)
+def test_set_attr_np_random_is_sync_vector_envs(env_id: str) -> None:
+    """Generators set per sub-env drive its steps and autoresets, as in SyncVectorEnv."""
+    native, sync = make_pair(env_id, AutoresetMode.NEXT_STEP)
+    assert_same(native.reset(seed=1), sync.reset(seed=1))
+    for env in (native, sync):
+        env.set_attr("np_random", [np.random.default_rng(100 + b) for b in range(N_ENVS)])
+        assert env.get_attr("np_random_seed") == (-1,) * N_ENVS
+    rng = np.random.default_rng(1)
+    for _ in range(2 * LIMIT):
+        actions = vector_actions(native.action_space, rng)
+        assert_same(native.step(actions), sync.step(actions))
+    assert_same_generators(native, sync)
+    reseeded = native.reset(seed=2)  # a seed replaces the set Generators
+    assert native.get_attr("np_random_seed") == (2, 3, 4)
+    assert_same(reseeded, sync.reset(seed=2))
+
+
+def test_set_attr_refuses_what_cannot_be_set_per_sub_env() -> None:
+    native = gym.make_vec("ActiveLoc/LandmarkEKF-v0", 2, vectorization_mode="vector_entry_point")
+    native.reset(seed=0)
+    before = [g.bit_generator.state for g in native.get_attr("np_random")]
+    for name in PLAIN_ATTRIBUTES:
+        with pytest.raises(AttributeError, match=rf"set_attr\('{name}'\).*fixed when"):
+            native.set_attr(name, [None, None])
+    with pytest.raises(AttributeError, match=r"np_random_seed.*read-only"):
+        native.set_attr("np_random_seed", 3)
+    with pytest.raises(AttributeError, match=r"'render'.*method"):
+        native.set_attr("render", None)
+    with pytest.raises(AttributeError, match="no attribute 'speed'"):
+        native.set_attr("speed", 1.0)
+    with pytest.raises(ValueError, match="`3` values for 2 environments"):
+        native.set_attr("np_random", [np.random.default_rng(i) for i in range(3)])
+    with pytest.raises(ValueError, match="Generator of its own"):
+        native.set_attr("np_random", np.random.default_rng(0))  # one for all: shared
+    with pytest.raises(TypeError, match=r"sub-env 1 needs a numpy\.random\.Generator, got int"):
+        native.set_attr("np_random", [np.random.default_rng(0), 7])
+    assert [g.bit_generator.state for g in native.get_attr("np_random")] == before
+
+
+def test_unknown_names_and_vector_methods_are_named() -> None:
+    native = gym.make_vec("ActiveLoc/GridMarkov-v0", 2, vectorization_mode="vector_entry_point")
+    for call in (native.get_attr, native.call):
+        with pytest.raises(AttributeError, match="no attribute 'planner_view'"):
+            call("planner_view")
+    for name in ("reset", "step", "close"):
+        with pytest.raises(AttributeError, match=rf"no {name}\(\) of their own"):
+            native.call(name)
+    with pytest.raises(AttributeError, match="no attribute 'walls'"):
+        native.get_attr("walls")  # a maze env's attribute is no other id's
+
+
+@pytest.mark.parametrize("env_id", ENGINE_IDS)
+def test_the_batched_info_is_flat_arrays_in_the_single_envs_dtypes(env_id: str) -> None:
+    """No nested dict: every entry is an array (n,) of float64, int64 or bool, the dtype of
+    the single env's value, and the flat reward terms hold the single env's reward_terms."""
+    native, sync = make_pair(env_id, AutoresetMode.SAME_STEP)
+    single = gym.make(env_id)
+    _, single_info = single.reset(seed=0)
+    native.reset(seed=0)
+    sync.reset(seed=0)
+    rng = np.random.default_rng(0)
+    for _ in range(LIMIT):
+        actions = vector_actions(native.action_space, rng)
+        *_, info = native.step(actions)
+        sync_info = sync.step(actions)[4]
+        for key, value in info.items():
+            if key in ("final_obs", "final_info") or key.startswith("_"):
+                continue
+            assert isinstance(value, np.ndarray) and value.shape == (N_ENVS,), key
+            assert value.dtype in (np.float64, np.int64, np.bool_), key
+            assert value.dtype == np.asarray(single_info[key]).dtype, key
+        for term, values in sync_info["reward_terms"].items():
+            if not term.startswith("_"):
+                np.testing.assert_array_equal(info[f"reward_{term}"], values)

@@ -34,7 +34,9 @@ included) ``- step_cost - collision_penalty`` on a blocked move; with ``team_rew
 robot gets the sum over the robots that acted this step. A robot terminates when its belief is
 confident (largest position std <= ``localized_position_std`` and heading std <=
 ``localized_heading_std``); it then stops where it is, stays visible to the others, and its
-belief stays as it was (a static, well-localized anchor). Every robot is truncated after
+belief stays as it was (a static, well-localized anchor). With
+``terminate_when_localized=False`` no robot terminates: a confident robot acts and filters on
+(the fixed set of agents SuperSuit's vector wrappers need). Every robot is truncated after
 ``max_cycles`` steps. Info per robot: ``pose_error`` (m), ``heading_error`` (rad), ``entropy``
 (nats), ``localized``, ``is_success`` (localized and within ``success_position_tol`` /
 ``success_heading_tol`` of the truth), ``collisions`` (this episode), ``fused`` (a detection was
@@ -168,6 +170,9 @@ class MultiRobotConfig:
     step_cost: float = 0.0  # subtracted every step (>= 0)
     collision_penalty: float = 1.0  # subtracted on a blocked move (>= 0)
     team_reward: bool = False  # every robot gets the team's summed reward
+    # False: a confident robot stays in the episode, acting and filtering, until max_cycles
+    # truncates every robot at once (the fixed agent set of SuperSuit's vector wrappers)
+    terminate_when_localized: bool = True
     localized_position_std: float = 0.15  # confident: largest position std below (m)
     localized_heading_std: float = 0.05  # ... and heading std below (rad)
     success_position_tol: float = 0.3  # success: confident and position error below (m)
@@ -195,7 +200,8 @@ class MultiRobotConfig:
         for kind in kinds:
             check_choice("initial_belief", kind, INITIAL_BELIEFS)
         object.__setattr__(self, "initial_beliefs", kinds)
-        check_bool_fields(self, ("fuse_detections", "fusion_sender_localized", "team_reward"))
+        check_bool_fields(self, ("fuse_detections", "fusion_sender_localized", "team_reward",
+                                 "terminate_when_localized"))
         known = self.known_correspondences
         if known is not None:
             check_bool("known_correspondences", known)
@@ -447,7 +453,7 @@ class MultiRobotLocalizationEnv(ParallelEnv):
             i = int(a.rsplit("_", 1)[1])
             obs[a] = self._observe(i)
             rew[a] = float(rewards[i])
-            term[a] = bool(self._localized[i])
+            term[a] = bool(self._localized[i]) and cfg.terminate_when_localized
             trunc[a] = self.steps >= self.max_cycles
             infos[a] = self._info(i, collided, float(gains[i]))
             self._paths[i].append(self.poses[i, :2].copy())

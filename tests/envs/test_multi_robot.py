@@ -309,6 +309,30 @@ def test_team_reward_and_a_localized_robot_stops() -> None:
     assert np.array_equal(e.poses[0], parked)
 
 
+def test_localized_robots_can_stay_in_the_episode_until_max_cycles() -> None:
+    """terminate_when_localized=False: the agent set stays whole until every robot is
+    truncated together, as SuperSuit's vector wrappers need; a confident robot keeps moving."""
+    kwargs = {"initial_belief": ("gaussian", "wide"), "initial_error_std": (0.0,) * 3,
+              "initial_belief_std": (0.05, 0.05, 0.01), "max_cycles": 6}
+    e = parallel_env(2, terminate_when_localized=False, **kwargs)
+    e.reset(seed=0)
+    start = e.poses[0].copy()
+    steps = drive(e, 10, action=(1.0, 0.0))
+    assert len(steps) == 6
+    for _, _, terminated, truncated, infos in steps[:-1]:
+        assert not any(terminated.values()) and not any(truncated.values())
+        assert sorted(infos) == ["robot_0", "robot_1"]
+    assert bool(steps[0][4]["robot_0"]["localized"])  # confident from the first step on
+    assert all(steps[-1][3].values()) and e.agents == []
+    assert not np.array_equal(e.poses[0], start)
+    # the default ends a confident robot's episode at once
+    e = parallel_env(2, **kwargs)
+    e.reset(seed=0)
+    assert drive(e, 1)[0][2] == {"robot_0": True, "robot_1": False}
+    with pytest.raises(ValueError, match="terminate_when_localized must be True or False"):
+        parallel_env(2, terminate_when_localized="False")
+
+
 def test_truncation_at_max_cycles() -> None:
     e = parallel_env(2, max_cycles=3, initial_belief="wide", fov=0.1, max_range=0.1)
     e.reset(seed=0)

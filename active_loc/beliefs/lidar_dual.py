@@ -34,6 +34,7 @@ from active_loc.beliefs.grid import coarse_free_mask
 from active_loc.beliefs.mcl import MCLBelief
 from active_loc.geometry import wrap_angle
 from active_loc.maps.occupancy import OccupancyGrid
+from active_loc.parallel import parallel_twin, pick
 from active_loc.sensors.lidar import LidarSensor
 from active_loc.sensors.lidar_lattice import (
     lattice_field_log_likelihood,
@@ -125,12 +126,13 @@ class LidarDualProposal:
         log-density ``(n,)`` under the proposal; ``exponent`` is the filter's likelihood
         exponent. Draws ``4 n`` uniforms from ``rng``."""
         cdf = self.scores(ranges).reshape(-1)  # overwritten by the proposal's CDF
-        proposal_cdf(cdf, exponent * self.n_beams / self.beams.shape[0], DEFENSIVE_SHARE)
+        scale = exponent * self.n_beams / self.beams.shape[0]
+        pick(proposal_cdf, proposal_cdf_parallel)(cdf, scale, DEFENSIVE_SHARE)
         u = rng.random((n, 4))
         total = cdf[-1]
-        pick = np.minimum(np.searchsorted(cdf, u[:, 0] * total, side="right"), cdf.shape[0] - 1)
-        prob = (cdf[pick] - np.where(pick > 0, cdf[pick - 1], 0.0)) / total
-        cell = pick // DUAL_HEADINGS
+        pose = np.minimum(np.searchsorted(cdf, u[:, 0] * total, side="right"), cdf.shape[0] - 1)
+        prob = (cdf[pose] - np.where(pose > 0, cdf[pose - 1], 0.0)) / total
+        cell = pose // DUAL_HEADINGS
         ny = self.free.shape[1]
         gx = (cell // ny + u[:, 1]) * self.cell_ratio  # map grid coordinates (cells)
         gy = (cell % ny + u[:, 2]) * self.cell_ratio
@@ -140,7 +142,7 @@ class LidarDualProposal:
         poses[:, 0] = ox + self.resolution * (c * gx - s * gy)
         poses[:, 1] = oy + self.resolution * (s * gx + c * gy)
         bin_width = 2.0 * np.pi / DUAL_HEADINGS
-        poses[:, 2] = wrap_angle(yaw + (pick % DUAL_HEADINGS + u[:, 3]) * bin_width)
+        poses[:, 2] = wrap_angle(yaw + (pose % DUAL_HEADINGS + u[:, 3]) * bin_width)
         log_q = np.log(prob) - math.log(self.cell_side**2 * bin_width)
         return poses, log_q
 
@@ -159,10 +161,11 @@ def proposal_cdf(scores: NDArray, scale: float, uniform_share: float) -> None:
             top = max(top, scale * scores[i])
             n_free += 1
     uniform_mass = uniform_share / n_free
-    total = 0.0
-    for i in range(scores.shape[0]):
+    for i in numba.prange(scores.shape[0]):  # the exps, in parallel in the twin
         v = scale * scores[i] - top
         scores[i] = math.exp(v) if v > -SOFTMAX_CUTOFF else (0.0 if v > -np.inf else -1.0)
+    total = 0.0
+    for i in range(scores.shape[0]):  # in order, so that both twins add alike
         if scores[i] > 0.0:
             total += scores[i]
     softmax_mass = (1.0 - uniform_mass * n_free) / total
@@ -171,6 +174,9 @@ def proposal_cdf(scores: NDArray, scale: float, uniform_share: float) -> None:
         if scores[i] >= 0.0:  # a free pose
             running += softmax_mass * scores[i] + uniform_mass
         scores[i] = running
+
+
+proposal_cdf_parallel = parallel_twin(proposal_cdf)
 
 
 def update_with_scan(

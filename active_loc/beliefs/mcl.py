@@ -67,6 +67,7 @@ from active_loc.beliefs.particle_stats import (
     normalize_log_weights,
     pose_bin,
     summarize_particles,
+    summary_weights,
     table_size,
 )
 from active_loc.geometry import wrap_angle, wrap_angle_scalar
@@ -1254,7 +1255,7 @@ class MCLBelief:
         n = self.n_active
         key = draw_key(rng)
         particles = self._particles[0, :n]
-        prior = self.summary().weights  # the predicted belief's weights
+        prior = self._weights()  # the predicted belief's weights
         bandwidth = silverman_bandwidth(particles, prior, MIN_KDE_BANDWIDTH)
         log_w = self._log_weights[0, :n]
         log_ev = add_log_likelihood(log_w, ll)  # log_w is now the motion sample's weights
@@ -1435,6 +1436,18 @@ class MCLBelief:
                 arr.setflags(write=False)
             self._summary = ParticleSummary(weights, mean, cov, entropy, ess)
         return self._summary
+
+    def _weights(self) -> NDArray[np.float64]:
+        """The summary's normalized weights ``(K,)``, without the rest of a summary not made
+        yet (read-only)."""
+        if self._summary is not None:
+            return self._summary.weights
+        n = int(self._counts[0])
+        weights = np.empty(n)
+        summary_weights(self._particles[0, :n], self._log_weights[0, :n], use_parallel(),
+                        weights)
+        weights.setflags(write=False)
+        return weights
 
     def mean(self) -> NDArray[np.float64]:
         """Weighted mean pose ``(3,)`` (m, m, rad), heading by the circular mean."""

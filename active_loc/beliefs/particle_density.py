@@ -83,13 +83,102 @@ def _split(u: float) -> tuple[int, float]:
     return int(i), u - i
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _x_value(mass: NDArray, taps: NDArray, r: int, cache: NDArray, done: NDArray, i: int,
+             j: int, m: int) -> float:
+    """The x-smoothed mass at node ``(i, j, m)``, computed on first use."""
+    if not done[i, j, m]:
+        acc = 0.0
+        for a in range(max(-r, -i), min(r, mass.shape[0] - 1 - i) + 1):
+            acc += taps[a + r] * mass[i + a, j, m]
+        cache[i, j, m] = acc
+        done[i, j, m] = True
+    return cache[i, j, m]
+
+
+@numba.njit(cache=True, nogil=True)
+def _xy_value(mass: NDArray, taps_x: NDArray, rx: int, taps_y: NDArray, ry: int,
+              x_cache: NDArray, x_done: NDArray, cache: NDArray, done: NDArray, i: int, j: int,
+              m: int) -> float:
+    """The x- then y-smoothed mass at node ``(i, j, m)``, computed on first use."""
+    if not done[i, j, m]:
+        acc = 0.0
+        for b in range(max(-ry, -j), min(ry, mass.shape[1] - 1 - j) + 1):
+            acc += taps_y[b + ry] * _x_value(mass, taps_x, rx, x_cache, x_done, i, j + b, m)
+        cache[i, j, m] = acc
+        done[i, j, m] = True
+    return cache[i, j, m]
+
+
+@numba.njit(cache=True, nogil=True)
+def _smooth_at_queries(mass: NDArray, taps_x: NDArray, rx: int, taps_y: NDArray, ry: int,
+                       taps_h: NDArray, rh: int, nodes: NDArray) -> NDArray:
+    """The smoothed grid ``(nx, ny, nh)``, filled in only at the nodes ``(N, 3)`` that the
+    queries read (and what those need), with exactly the sums of :func:`_smooth_all`."""
+    nh = mass.shape[2]
+    x_cache = np.empty_like(mass)
+    y_cache = np.empty_like(mass)
+    smooth = np.empty_like(mass)
+    x_done = np.zeros(mass.shape, dtype=np.bool_)
+    y_done = np.zeros(mass.shape, dtype=np.bool_)
+    done = np.zeros(mass.shape, dtype=np.bool_)
+    for n in range(nodes.shape[0]):
+        i, j, m = nodes[n, 0], nodes[n, 1], nodes[n, 2]
+        if done[i, j, m]:
+            continue
+        acc = 0.0
+        for c in range(-rh, rh + 1):  # around the circle
+            acc += taps_h[c + rh] * _xy_value(mass, taps_x, rx, taps_y, ry, x_cache, x_done,
+                                              y_cache, y_done, i, j, (m + c) % nh)
+        smooth[i, j, m] = acc
+        done[i, j, m] = True
+    return smooth
+
+
+@numba.njit(cache=True, nogil=True)
+def _smooth_all(mass: NDArray, taps_x: NDArray, rx: int, taps_y: NDArray, ry: int,
+                taps_h: NDArray, rh: int) -> NDArray:
+    """The grid ``(nx, ny, nh)`` convolved along x, y and (circularly) heading; ``mass`` is
+    overwritten."""
+    nx, ny, nh = mass.shape
+    smooth = np.zeros((nx, ny, nh))
+    for i in range(nx):
+        for a in range(max(-rx, -i), min(rx, nx - 1 - i) + 1):
+            c = taps_x[a + rx]
+            for j in range(ny):
+                for m in range(nh):
+                    smooth[i, j, m] += c * mass[i + a, j, m]
+    mass[:] = 0.0
+    for i in range(nx):
+        for j in range(ny):
+            for b in range(max(-ry, -j), min(ry, ny - 1 - j) + 1):
+                c = taps_y[b + ry]
+                for m in range(nh):
+                    mass[i, j, m] += c * smooth[i, j + b, m]
+    ring = np.empty(nh + 2 * rh)  # one heading column, wrapped around at both ends
+    for i in range(nx):
+        for j in range(ny):
+            for m in range(nh + 2 * rh):
+                ring[m] = mass[i, j, (m - rh) % nh]
+            for m in range(nh):
+                acc = 0.0
+                for c in range(2 * rh + 1):
+                    acc += taps_h[c] * ring[m + c]
+                smooth[i, j, m] = acc
+    return smooth
+
+
 @numba.njit(cache=True, nogil=True)
 def binned_kde_kernel(
     particles: NDArray, weights: NDArray, bandwidth: NDArray, queries: NDArray, out: NDArray
 ) -> None:
     """``log bel_bar`` ``(Q,)`` at ``queries`` ``(Q, 3)`` (module docstring); particles
     ``(K, 3)`` with headings in ``[-pi, pi)``, weights ``(K,)`` summing to 1, ``bandwidth``
-    ``(3,)`` with a heading bandwidth of at most pi."""
+    ``(3,)`` with a heading bandwidth of at most pi.
+
+    The convolved grid is needed only at the 8 nodes around each query: where the queries
+    are few against the grid's cells, only those nodes (and the sums they need) are computed,
+    with the same sums in the same order, so both ways give the same numbers."""
     k = particles.shape[0]
     x0 = y0 = np.inf
     x1 = y1 = -np.inf
@@ -132,29 +221,29 @@ def binned_kde_kernel(
     taps_x = _taps(_narrowed(bandwidth[0], dx), dx, rx)
     taps_y = _taps(_narrowed(bandwidth[1], dy), dy, ry)
     taps_h = _taps(_narrowed(bandwidth[2], dh), dh, rh)
-    smooth = np.zeros((nx, ny, nh))
-    for i in range(nx):
-        for a in range(max(-rx, -i), min(rx, nx - 1 - i) + 1):
-            c = taps_x[a + rx]
-            for j in range(ny):
-                for m in range(nh):
-                    smooth[i, j, m] += c * mass[i + a, j, m]
-    mass[:] = 0.0
-    for i in range(nx):
-        for j in range(ny):
-            for b in range(max(-ry, -j), min(ry, ny - 1 - j) + 1):
-                c = taps_y[b + ry]
-                for m in range(nh):
-                    mass[i, j, m] += c * smooth[i, j + b, m]
-    for i in range(nx):
-        for j in range(ny):
-            for m in range(nh):
-                acc = 0.0
-                for c in range(-rh, rh + 1):  # around the circle
-                    acc += taps_h[c + rh] * mass[i, j, (m + c) % nh]
-                smooth[i, j, m] = acc
+    q_count = queries.shape[0]
+    nodes = np.empty((8 * q_count, 3), dtype=np.int64)  # the grid nodes each query reads
+    n_nodes = 0
+    for q in range(q_count):
+        u = (queries[q, 0] - gx) / dx
+        v = (queries[q, 1] - gy) / dy
+        if 0.0 <= u < nx - 1 and 0.0 <= v < ny - 1:
+            ih = _split((queries[q, 2] + math.pi) / dh - 0.5)[0]
+            for a in range(2):
+                for b in range(2):
+                    for c in range(2):
+                        nodes[n_nodes, 0] = int(u) + a
+                        nodes[n_nodes, 1] = int(v) + b
+                        nodes[n_nodes, 2] = (ih + c) % nh
+                        n_nodes += 1
+    # the sums a node needs at most, read lazily, against every cell's three convolutions
+    per_node = (2 * rh + 1) * (1 + (2 * ry + 1) * (1 + (2 * rx + 1)))
+    if n_nodes * per_node < nx * ny * nh * (2 * (rx + ry + rh) + 3):
+        smooth = _smooth_at_queries(mass, taps_x, rx, taps_y, ry, taps_h, rh, nodes[:n_nodes])
+    else:
+        smooth = _smooth_all(mass, taps_x, rx, taps_y, ry, taps_h, rh)
     log_cell = math.log(dx * dy * dh)
-    for q in range(queries.shape[0]):
+    for q in range(q_count):
         u = (queries[q, 0] - gx) / dx
         v = (queries[q, 1] - gy) / dy
         if not (0.0 <= u < nx - 1 and 0.0 <= v < ny - 1):

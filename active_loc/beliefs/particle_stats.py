@@ -260,6 +260,35 @@ _summary_blocks_parallel = parallel_twin(_summary_blocks)
 _covariance_blocks_parallel = parallel_twin(_covariance_blocks)
 
 
+def _weight_sums(
+    particles: NDArray, log_w: NDArray, parallel: bool, weights: NDArray
+) -> tuple[NDArray, NDArray]:
+    """The normalized weights ``(K,)`` into ``weights``; returns the per-block scratch
+    ``(blocks, 6)`` and the sums of :func:`_summary_blocks` over the blocks in order
+    (unnormalized). Every weight zero: uniform weights."""
+    k = particles.shape[0]
+    n_blocks = (k + SUMMARY_BLOCK - 1) // SUMMARY_BLOCK
+    partial = np.empty((n_blocks, 6))
+    shift = float(log_w.max()) if k else -np.inf
+    if shift == -np.inf:
+        log_w = np.zeros(k)
+        shift = 0.0
+    (_summary_blocks_parallel if parallel else _summary_blocks)(
+        particles, log_w, shift, weights, partial
+    )
+    sums = partial.sum(axis=0)  # the blocks in order (a new array: partial is reused)
+    weights /= sums[0]
+    return partial, sums
+
+
+def summary_weights(
+    particles: NDArray, log_w: NDArray, parallel: bool, weights: NDArray
+) -> None:
+    """The normalized weights ``(K,)`` of :func:`summarize_particles` alone, into ``weights``
+    (the same numbers, without the covariance and entropy passes)."""
+    _weight_sums(particles, log_w, parallel, weights)
+
+
 def summarize_particles(
     particles: NDArray, log_w: NDArray, bins: NDArray, parallel: bool,
     weights: NDArray, mean: NDArray, cov: NDArray,
@@ -277,19 +306,8 @@ def summarize_particles(
     :func:`histogram_entropy`) and Kish's effective sample size. ``parallel`` runs the block
     sums on numba's threads (the same numbers). Every weight zero: uniform weights.
     """
-    k = particles.shape[0]
-    n_blocks = (k + SUMMARY_BLOCK - 1) // SUMMARY_BLOCK
-    partial = np.empty((n_blocks, 6))
-    shift = float(log_w.max()) if k else -np.inf
-    if shift == -np.inf:
-        log_w = np.zeros(k)
-        shift = 0.0
-    (_summary_blocks_parallel if parallel else _summary_blocks)(
-        particles, log_w, shift, weights, partial
-    )
-    sums = partial.sum(axis=0)  # the blocks in order (a new array: partial is reused)
+    partial, sums = _weight_sums(particles, log_w, parallel, weights)
     total = sums[0]
-    weights /= total
     mean[0] = sums[2] / total
     mean[1] = sums[3] / total
     heading = math.atan2(sums[4], sums[5])

@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from active_loc.beliefs.particle_density import kde_log_density, silverman_bandwidth
+from active_loc.beliefs.particle_density import (
+    _smooth_all,
+    _smooth_at_queries,
+    _taps,
+    kde_log_density,
+    silverman_bandwidth,
+)
 
 
 def brute_force_log_density(particles, weights, bandwidth, queries) -> np.ndarray:
@@ -53,6 +59,23 @@ def test_the_binned_density_is_close_to_the_full_sum(bandwidth) -> None:
     error = binned[reached] - exact[reached]
     assert np.quantile(np.abs(error), 0.9) < 0.2
     assert abs(np.mean(np.exp(error)) - 1.0) < 0.03
+
+
+@pytest.mark.parametrize("reach", [(4, 4, 4), (2, 3, 1), (5, 1, 7)])
+def test_the_lazy_convolution_gives_the_full_grids_numbers(reach) -> None:
+    """Nodes computed on demand (a few queries against a large grid) hold exactly the full
+    convolution's values, heading wrap and grid edges included."""
+    rx, ry, rh = reach
+    rng = np.random.default_rng(3)
+    mass = rng.random((12, 9, 16)) * (rng.random((12, 9, 16)) < 0.3)
+    taps = [_taps(0.8 * r + 0.3, 1.0, r) for r in reach]
+    full = _smooth_all(mass.copy(), taps[0], rx, taps[1], ry, taps[2], rh)
+    nodes = np.column_stack([rng.integers(0, n, 200) for n in mass.shape])
+    nodes[:4] = [[0, 0, 0], [11, 8, 15], [0, 8, 15], [11, 0, 0]]  # the corners
+    lazy = _smooth_at_queries(mass, taps[0], rx, taps[1], ry, taps[2], rh, nodes)
+    got = lazy[nodes[:, 0], nodes[:, 1], nodes[:, 2]]
+    assert np.array_equal(got, full[nodes[:, 0], nodes[:, 1], nodes[:, 2]])
+    assert np.any(got > 0.0)
 
 
 def test_the_density_integrates_to_one() -> None:

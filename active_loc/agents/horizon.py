@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from active_loc.agents.maze_search import distinguishing_plan
 from active_loc.agents.planning import (
     candidate_actions,
     collision_penalty_of,
@@ -47,6 +48,7 @@ from active_loc.agents.planning import (
     travel_of,
 )
 from active_loc.envs.actions import PRIMITIVE_NAMES
+from active_loc.envs.maze_core import MOVE_FORWARD, TURN_LEFT
 
 #: the motion primitives a macro-action holds: all but "stay", which spends a whole
 #: macro-action rescanning one view (and a lidar filter that takes its beams as independent
@@ -156,6 +158,32 @@ class HorizonPlannerAgent:
         actions = [primitive_action(view, p) for p in MACRO_PRIMITIVES]
         return actions, self._macro_scores(view)
 
+    def _uninformative(self, view: Any, actions: list[Any], values: NDArray[np.float64]) -> bool:
+        """Whether the maze belief is ambiguous and no plan within the horizon lowers its
+        entropy: every first action then costs ``horizon`` times the entropy now plus its own
+        travel (the cheapest continuation, turning in place, travels nothing)."""
+        if view.belief.max_prob()[0] >= 1.0 - 1e-12:
+            return False
+        flat = self.horizon * entropy_of(view.belief)
+        return all(value >= flat + self.travel_cost * travel_of(view, action) - 1e-9
+                   for action, value in zip(actions, values, strict=True))
+
+    def _search_maze(self, view: Any) -> int:
+        """The first action of the shortest sequence that tells the hypotheses apart
+        (:func:`~active_loc.agents.maze_search.distinguishing_plan`); where none is left,
+        forward, where it is open under the likeliest hypothesis, so that the robot does not
+        turn in place."""
+        plan = distinguishing_plan(view, view.episode_length - view.step)
+        if plan is not None:
+            action = plan[0]
+        else:
+            x, y, h = np.unravel_index(int(np.argmax(view.belief.prob[0])),
+                                       view.belief.prob.shape[1:])
+            blocked = view.motion.move(view.belief.free[0], (x, y, h), MOVE_FORWARD)[1]
+            action = TURN_LEFT if blocked else MOVE_FORWARD
+        self._previous = action
+        return action
+
     def _tie_break(self, best: NDArray[np.int64]) -> int:
         """Among equally good first actions: the previous one (keep going), else random."""
         if self._previous is not None and self._previous in best.tolist():
@@ -168,6 +196,8 @@ class HorizonPlannerAgent:
         if self._held:
             return self._held.pop()
         actions, values = self.scores(view)
+        if hasattr(view, "outcomes") and self._uninformative(view, actions, values):
+            return self._search_maze(view)
         best = np.flatnonzero(values <= values.min() + 1e-9)
         index = self._tie_break(best)
         self._previous = index

@@ -446,6 +446,48 @@ def update_kernel(prob: NDArray, likelihood: NDArray, free: NDArray, evidence: N
 
 
 @numba.njit(cache=True, nogil=True)
+def update_log_kernel(
+    prob: NDArray, log_likelihood: NDArray, free: NDArray, lik: NDArray, evidence: NDArray,
+    shifts: NDArray,
+) -> bool:
+    """:func:`update_member` of every member with the likelihood ``exp(log_likelihood[b] -
+    shifts[b])`` ``(B, X, Y, H)``, ``shifts[b]`` (out) the member's largest log-likelihood (0
+    if all are ``-inf``), so that the largest likelihood is exactly 1; ``lik`` receives the
+    likelihoods (the exps in parallel over the cells in the twin), ``evidence[b]`` the
+    evidence of the shifted likelihood.
+
+    Returns:
+        False (and ``prob`` untouched) if a log-likelihood is NaN or ``+inf``.
+    """
+    nb, nx, ny, nh = prob.shape
+    explained = np.zeros(nb, dtype=np.bool_)  # some log-likelihood above -inf
+    for b in range(nb):
+        top = -np.inf
+        for x in range(nx):
+            for y in range(ny):
+                for h in range(nh):
+                    v = log_likelihood[b, x, y, h]
+                    if not v < np.inf:  # NaN or +inf
+                        return False
+                    if v > top:
+                        top = v
+        explained[b] = top > -np.inf
+        shifts[b] = top if explained[b] else 0.0
+    for b in range(nb):
+        shift = shifts[b]
+        for x in numba.prange(nx):
+            for y in range(ny):
+                for h in range(nh):
+                    lik[b, x, y, h] = math.exp(log_likelihood[b, x, y, h] - shift)
+        # the largest likelihood: exp(top - top) = 1, or 0 when every one is
+        evidence[b] = update_member(prob, lik, 1.0 if explained[b] else 0.0, free, b)
+    return True
+
+
+update_log_kernel_parallel = parallel_twin(update_log_kernel)
+
+
+@numba.njit(cache=True, nogil=True)
 def entropy_kernel(prob: NDArray, log_cell_volume: float, out: NDArray) -> None:
     """``out[b] = -sum p log p + log_cell_volume`` (nats) of ``prob`` ``(B, X, Y, H)``,
     summed a column of cells (one ``x``) at a time, then over the columns in order (in
@@ -985,15 +1027,15 @@ class GridBelief:
             raise ValueError(
                 f"log_likelihood must have shape {shape} or {shape[1:]}, got {ll.shape}"
             )
-        if np.any(np.isnan(ll)) or np.any(ll == np.inf):
+        shifts = np.empty(shape[0])
+        # the scratch array is free between predictions: it takes the likelihoods
+        if not pick(update_log_kernel, update_log_kernel_parallel)(
+            self._prob, ll, self._free, self._scratch, self._evidence, shifts
+        ):
             raise ValueError("log_likelihood must not hold NaN or +inf")
-        top = ll.reshape(shape[0], -1).max(axis=1)
-        finite_top = np.where(np.isfinite(top), top, 0.0)
-        with np.errstate(invalid="ignore"):
-            lik = np.exp(ll - finite_top[:, None, None, None])
-        evidence = self.update(lik)
+        evidence = self._evidence
         with np.errstate(divide="ignore"):
-            return np.where(evidence > 0.0, np.log(evidence) + finite_top, -np.inf)
+            return np.where(evidence > 0.0, np.log(evidence) + shifts, -np.inf)
 
     # -- statistics -----------------------------------------------------------------------------
 

@@ -18,7 +18,13 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from active_loc.beliefs.grid import GridBelief, MotionKernel, coarse_free_mask
+from active_loc.beliefs.grid import (
+    GridBelief,
+    MotionKernel,
+    coarse_free_mask,
+    update_log_kernel,
+    update_log_kernel_parallel,
+)
 from active_loc.beliefs.grid_motion import axis_weights, fractional_kernel
 from active_loc.beliefs.mcl import landmark_log_likelihood
 from active_loc.envs.maze_env import TURN_LEFT, TURN_RIGHT, MazeMotion
@@ -290,6 +296,31 @@ def test_update_log_matches_update_and_survives_tiny_likelihoods() -> None:
     assert log_evidence[0] == pytest.approx(expected + ll.max(), rel=1e-12)
 
 
+def test_update_log_shifts_each_member_by_its_own_maximum_in_both_twins() -> None:
+    free = parse(TINY)
+    rng = np.random.default_rng(4)
+    ll = rng.normal(0.0, 3.0, (3, *free.shape, 4)) + np.array([-900.0, 0.0, 700.0])[:, None,
+                                                                                None, None]
+    ll[1] = -np.inf  # a member no pose explains: re-initialized, log evidence -inf
+    ll[2, 0, 0, 0] = -np.inf
+    reference = GridBelief(free, batch_size=3)
+    belief = reference.copy()
+    tops = np.array([ll[0].max(), 0.0, ll[2].max()])
+    evidence = reference.update(np.exp(ll - tops[:, None, None, None]))
+    log_evidence = belief.update_log(ll)
+    assert np.array_equal(belief.prob, reference.prob)
+    assert np.array_equal(log_evidence[[0, 2]], np.log(evidence[[0, 2]]) + tops[[0, 2]])
+    assert np.isneginf(log_evidence[1])
+    prob = {}
+    for kernel in (update_log_kernel, update_log_kernel_parallel):
+        state = GridBelief(free, batch_size=3).copy()
+        out = np.empty(3), np.empty(3)
+        assert kernel(state._prob, ll, state._free, np.empty_like(state._prob), *out)
+        prob[kernel] = state._prob.copy()
+    assert np.array_equal(prob[update_log_kernel], prob[update_log_kernel_parallel])
+    assert np.array_equal(prob[update_log_kernel], reference.prob)
+
+
 def test_entropy_is_histogram_entropy_plus_log_cell_volume() -> None:
     free = parse(TINY)
     n_free = int(free.sum())
@@ -339,6 +370,7 @@ def test_copy_pickle_and_deepcopy_are_deep() -> None:
         (lambda b: b.update(-np.ones((4, 3, 4))), "likelihood"),
         (lambda b: b.update(np.full((4, 3, 4), np.nan)), "likelihood"),
         (lambda b: b.update_log(np.full((4, 3, 4), np.inf)), "log_likelihood"),
+        (lambda b: b.update_log(np.full((4, 3, 4), np.nan)), "log_likelihood"),
         (lambda b: b.predict(np.zeros((3, 2), dtype=int)), "shift"),
         (lambda b: b.predict(np.zeros((4, 2))), "shift"),
         (lambda b: b.predict(np.zeros((4, 2), dtype=int), turn=np.zeros(2, dtype=int)), "turn"),

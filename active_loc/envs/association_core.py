@@ -56,7 +56,6 @@ from active_loc.envs.landmark_core import (
     P_R,
     P_RANGE,
     P_RROOT,
-    P_SCALE,
     S_COLLIDED,
     S_N_VISIBLE,
     S_NIS,
@@ -263,7 +262,7 @@ class AssociationCore(LandmarkCore):
         # known correspondences)
         super().__init__(dataclasses.replace(config, ekf_backend="numba"), batch_size)
         n = config.max_landmarks
-        scale = float(self.models.params[P_SCALE])
+        scale = self.models.scale
         # clutter spreads over the sensor's range, or a map-sized disc when it is unlimited
         clutter_range = config.max_range if math.isfinite(config.max_range) else scale
         self.detection = DetectionModel(config.miss_probability, config.clutter_rate,
@@ -325,7 +324,7 @@ class AssociationCore(LandmarkCore):
         block, k = self.noise.shape[1], self._n_normals
         self.noise[b, :, :k] = rng.standard_normal((block, k))
         self.noise[b, :, k:] = rng.random((block, self.noise.shape[2] - k))
-        self.state[b, X_NOISE_CURSOR] = 0
+        self.rows[b]["noise_cursor"] = 0
         self.noise_source[b] = rng
 
     def step(self, rngs: Sequence[np.random.Generator]) -> int:
@@ -336,7 +335,7 @@ class AssociationCore(LandmarkCore):
         """
         code = self._step_kernel()
         if code == NEED_NOISE:
-            for b in np.flatnonzero(self.state[:, X_NOISE_CURSOR] >= self.noise.shape[1]):
+            for b in np.flatnonzero(self.rows["noise_cursor"] >= self.noise.shape[1]):
                 self.refill_noise(int(b), rngs[b])
             code = self._step_kernel()
         return code

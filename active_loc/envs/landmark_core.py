@@ -13,8 +13,9 @@ The single env is this core with B = 1; a vector env is the same code with B = n
 State layout: every per-member float lives in one row of ``state`` ``(B, STATE_SIZE)`` (true
 pose, belief mean and covariance, map box, noise cursor, metrics) and every per-landmark one in
 ``world`` ``(B, N, WORLD_SIZE)`` (position, measurement, visibility), at the offsets named
-below; the holder exposes them as named views (``core.pose``, ``core.z``, ...). Few arrays make
-the kernel call cheap, which matters at a few microseconds per step.
+below; the kernels read those offsets, and everything else the named views of the holder
+(``core.rows["entropy"]``, ``core.pose``, ``core.z``, ...; :data:`ROW_DTYPE`). Few arrays
+make the kernel call cheap, which matters at a few microseconds per step.
 
 Randomness: each member owns a ``numpy.random.Generator`` (the env's ``np_random``). Step noise
 is drawn from it :data:`NOISE_LENGTH` standard normals at a time into the member's buffer, which
@@ -28,6 +29,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections import namedtuple
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -130,6 +132,44 @@ WORLD_SIZE = 5
 N_STATS = 16
 STATE_SIZE = X_STATS + N_STATS
 
+#: the metrics by name: ``state[b, X_STATS + STAT_OFFSETS[name]]``, in the order of the row
+STAT_OFFSETS = {
+    "entropy": S_ENTROPY, "logdet": S_LOGDET, "trace": S_TRACE, "pos_err": S_POS_ERR,
+    "head_err": S_HEAD_ERR, "collided": S_COLLIDED, "n_visible": S_N_VISIBLE, "nis": S_NIS,
+    "pos_std": S_POS_STD, "head_std": S_HEAD_STD, "uncertainty_reward": S_UNCERTAINTY_REWARD,
+    "localized": S_LOCALIZED, "success": S_SUCCESS, "terminal": S_TERMINAL,
+    "kidnapped": S_KIDNAPPED, "outcome": S_OUTCOME,
+}
+assert list(STAT_OFFSETS.values()) == list(range(N_STATS))
+
+#: a member's metrics as plain numbers, by name: ``MemberStats._make(core.stats[b].tolist())``
+MemberStats = namedtuple("MemberStats", list(STAT_OFFSETS))  # type: ignore[misc]
+
+
+def _record(fields: dict[str, tuple[object, int]], size: int) -> np.dtype:
+    """A record of float64 ``fields`` (name: (shape, offset in floats)) over ``size`` floats."""
+    return np.dtype({
+        "names": list(fields),
+        "formats": [(np.float64, shape) if shape else np.float64 for shape, _ in fields.values()],
+        "offsets": [8 * offset for _, offset in fields.values()],
+        "itemsize": 8 * size,
+    })
+
+
+#: a row of ``state`` by name, for the Python side (:attr:`StateViews.rows`); the kernels read
+#: the packed row at the offsets above. Flags are 0.0 or 1.0.
+ROW_DTYPE = _record(
+    {"pose": (3, X_POSE), "mean": (3, X_MEAN), "cov": ((3, 3), X_COV), "bounds": (4, X_BOX),
+     "walls": ((), X_BOX + B_WALLS), "n_landmarks": ((), X_BOX + B_COUNT),
+     "noise_cursor": ((), X_NOISE_CURSOR)}
+    | {name: ((), X_STATS + offset) for name, offset in STAT_OFFSETS.items()},
+    STATE_SIZE,
+)
+#: a landmark's entry of ``world`` by name
+WORLD_DTYPE = _record(
+    {"landmark": (2, W_LANDMARK), "z": (2, W_Z), "visible": ((), W_VISIBLE)}, WORLD_SIZE
+)
+
 
 @dataclass(frozen=True)
 class EnvModels:
@@ -141,6 +181,12 @@ class EnvModels:
     params: NDArray[np.float64]
     primitives: NDArray[np.float64]
     limits: ControlLimits
+
+    @property
+    def scale(self) -> float:
+        """The length (m) the observation divides landmark offsets by: the sensor's range, or
+        the map's diagonal when the range is unlimited."""
+        return float(self.params[P_SCALE])
 
 
 def build_motion(cfg: LocalizationConfig) -> UnicycleModel:
@@ -481,18 +527,25 @@ def executed_controls(actions: NDArray, params: NDArray, collided: NDArray) -> N
 
 
 class StateViews:
-    """Named views of the ``state`` array every core keeps (one row per member)."""
+    """Named views of the ``state`` array every core keeps (one row per member): outside the
+    kernels, the rows are read and written through these, never at offsets."""
 
     state: NDArray[np.float64]
 
     @property
+    def rows(self) -> NDArray[np.void]:
+        """``(B,)`` the rows as :data:`ROW_DTYPE` records (a view: writes go to ``state``)."""
+        return self.state.view(ROW_DTYPE)[:, 0]
+
+    @property
     def pose(self) -> NDArray[np.float64]:
         """``(B, 3)`` true poses (a view)."""
-        return self.state[:, X_POSE : X_POSE + 3]
+        return self.state[:, X_POSE : X_POSE + 3]  # sliced, not through rows: read every step
 
     @property
     def stats(self) -> NDArray[np.float64]:
-        """``(B, N_STATS)`` metrics of the last step (a view)."""
+        """``(B, N_STATS)`` metrics of the last step, in the order of :data:`STAT_OFFSETS`
+        (a view)."""
         return self.state[:, X_STATS : X_STATS + N_STATS]
 
     @property
@@ -507,21 +560,20 @@ class StateViews:
 
     def outcome(self, b: int) -> StepOutcome:
         """Member ``b``'s last step (or reset), by name."""
-        return outcome_from_stats(self.state[b, X_STATS : X_STATS + N_STATS].tolist())
+        return outcome_from_stats(MemberStats._make(self.stats[b].tolist()))
 
     def outcomes(self, rows: Sequence[int] | slice = slice(None)) -> list[StepOutcome]:
         """:meth:`outcome` of the members in ``rows`` (all by default)."""
-        return [outcome_from_stats(stats)
-                for stats in self.state[rows, X_STATS : X_STATS + N_STATS].tolist()]
+        return [outcome_from_stats(MemberStats._make(stats))
+                for stats in self.stats[rows].tolist()]
 
 
-def outcome_from_stats(stats: list[float]) -> StepOutcome:
-    """The named outcome of a member's metrics (``state[b, X_STATS:]`` as floats)."""
+def outcome_from_stats(s: MemberStats) -> StepOutcome:
+    """The named outcome of a member's metrics."""
     return StepOutcome(
-        stats[S_POS_ERR], stats[S_HEAD_ERR], stats[S_ENTROPY], stats[S_UNCERTAINTY_REWARD],
-        stats[S_COLLIDED] > 0.5, stats[S_OUTCOME], stats[S_LOCALIZED] > 0.5,
-        stats[S_SUCCESS] > 0.5, stats[S_TERMINAL] > 0.5, stats[S_KIDNAPPED] > 0.5,
-        int(stats[S_N_VISIBLE]), stats[S_NIS],
+        s.pos_err, s.head_err, s.entropy, s.uncertainty_reward, bool(s.collided), s.outcome,
+        bool(s.localized), bool(s.success), bool(s.terminal), bool(s.kidnapped),
+        int(s.n_visible), s.nis,
     )
 
 
@@ -570,8 +622,9 @@ class LandmarkCore(StateViews):
         self._start_pose = np.array(config.start_pose, dtype=np.float64)
         self._error_std = np.array(config.initial_error_std, dtype=np.float64)
         self._initial_cov = np.diag(np.square(config.initial_belief_std))
-        self.state[:, X_NOISE_CURSOR] = NOISE_EXHAUSTED
-        self.state[:, X_COV : X_COV + 9] = self._initial_cov.ravel()
+        rows = self.rows
+        rows["noise_cursor"] = NOISE_EXHAUSTED
+        rows["cov"] = self._initial_cov
         self.belief: EKFBelief | FilterpyEKFBelief
         if config.ekf_backend == "filterpy":
             self.belief = FilterpyEKFBelief(
@@ -583,19 +636,25 @@ class LandmarkCore(StateViews):
     # -- named views of the packed arrays ------------------------------------------------------
 
     @property
+    def entries(self) -> NDArray[np.void]:
+        """``(B, N)`` the landmarks' entries of ``world`` as :data:`WORLD_DTYPE` records (a
+        view)."""
+        return self.world.view(WORLD_DTYPE)[..., 0]
+
+    @property
     def landmarks(self) -> NDArray[np.float64]:
         """``(B, N, 2)`` landmark positions, zero-padded (a view)."""
-        return self.world[:, :, W_LANDMARK : W_LANDMARK + 2]
+        return self.entries["landmark"]
 
     @property
     def z(self) -> NDArray[np.float64]:
         """``(B, N, 2)`` the last scan, zero where unseen (a view)."""
-        return self.world[:, :, W_Z : W_Z + 2]
+        return self.entries["z"]
 
     @property
     def visible(self) -> NDArray[np.bool_]:
         """``(B, N)`` which landmarks the last scan saw (a copy)."""
-        return self.world[:, :, W_VISIBLE] > 0.5
+        return self.entries["visible"].astype(np.bool_)
 
     # -- reset ---------------------------------------------------------------------------------
 
@@ -616,7 +675,8 @@ class LandmarkCore(StateViews):
         else:
             uniforms = rng.random(3) if self._random_start else self._start_pose
         normals = rng.standard_normal(3)
-        cursor = self.state[b, X_NOISE_CURSOR]
+        row = self.rows[b]
+        cursor = row["noise_cursor"]
         reset_member_kernel(
             b, lmap.positions, np.asarray(lmap.bounds), lmap.walls, self._random_start, uniforms,
             normals, self._error_std, self._initial_cov, self.models.params, self.state,
@@ -624,9 +684,9 @@ class LandmarkCore(StateViews):
         )
         if self.noise_source[b] is rng:
             # the same Generator goes on (no reseeding): so does its noise buffer
-            self.state[b, X_NOISE_CURSOR] = cursor
+            row["noise_cursor"] = cursor
         if isinstance(self.belief, FilterpyEKFBelief):
-            self.belief.set(self.state[b, X_MEAN : X_MEAN + 3], self._initial_cov)
+            self.belief.set(row["mean"], self._initial_cov)
 
     def _unseen_start(self, lmap: LandmarkMap, rng: np.random.Generator) -> NDArray:
         """Uniforms of a random start (see :func:`random_start_pose`) from which no landmark
@@ -650,7 +710,7 @@ class LandmarkCore(StateViews):
     def refill_noise(self, b: int, rng: np.random.Generator) -> None:
         """Draw a fresh noise buffer of member ``b`` from its Generator."""
         rng.standard_normal(out=self.noise[b])  # the same draws as standard_normal(L)
-        self.state[b, X_NOISE_CURSOR] = 0
+        self.rows[b]["noise_cursor"] = 0
         self.noise_source[b] = rng
 
     def step(
@@ -694,22 +754,23 @@ class LandmarkCore(StateViews):
             return code
         if self._fused:
             return code
-        collided = self.state[:, X_STATS + S_COLLIDED] > 0.5
+        rows = self.rows
+        collided = rows["collided"].astype(np.bool_)
         belief = self.belief
         belief.predict(executed_controls(self.actions, params, collided))
         belief.update(self.z, self.visible, self.landmarks)
-        self.state[:, X_MEAN : X_MEAN + 3] = belief.mean
-        self.state[:, X_COV : X_COV + 9] = belief.cov.reshape(-1, 9)
-        self.state[:, X_STATS + S_NIS] = belief.last_nis
+        rows["mean"] = belief.mean
+        rows["cov"] = belief.cov
+        rows["nis"] = belief.last_nis
         finish_batch(params, self.state, self.world, self.obs)
         return -1
 
     # -- the numba belief's arrays are views of the state -------------------------------------
 
     def _bind_belief(self) -> None:
-        mean = self.state[:, X_MEAN : X_MEAN + 3]
-        cov = self.state[:, X_COV : X_COV + 9].reshape(self.batch_size, 3, 3)
-        self.belief = EKFBelief.wrap(mean, cov, self.models.motion, self.models.sensor)
+        rows = self.rows
+        self.belief = EKFBelief.wrap(rows["mean"], rows["cov"], self.models.motion,
+                                     self.models.sensor)
 
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()

@@ -34,32 +34,9 @@ from active_loc.envs.config import LocalizationConfig, check_start_pose, memory_
 from active_loc.envs.crowd import Crowd
 from active_loc.envs.field_checks import check_memory
 from active_loc.envs.landmark_core import (
-    B_COUNT,
-    B_WALLS,
     N_PARAMS,
-    N_STATS,
     P_SCALE,
-    S_COLLIDED,
-    S_ENTROPY,
-    S_HEAD_ERR,
-    S_HEAD_STD,
-    S_KIDNAPPED,
-    S_LOCALIZED,
-    S_LOGDET,
-    S_N_VISIBLE,
-    S_OUTCOME,
-    S_POS_ERR,
-    S_POS_STD,
-    S_SUCCESS,
-    S_TERMINAL,
-    S_TRACE,
-    S_UNCERTAINTY_REWARD,
     STATE_SIZE,
-    X_BOX,
-    X_COV,
-    X_MEAN,
-    X_POSE,
-    X_STATS,
     EnvModels,
     StateViews,
     build_models,
@@ -188,26 +165,26 @@ class ParticleCore(StateViews):
         if lmap is not self.maps[0]:
             self._bind_map(lmap, data)
         self.maps[0] = lmap
-        row = self.state[0]
-        row[:] = 0.0
-        row[X_BOX : X_BOX + 4] = lmap.bounds
+        self.state[0] = 0.0
+        row = self.rows[0]
+        row["bounds"] = lmap.bounds
         # grids block motion by their cells; a landmark map by its border when it has walls
         self._walls = isinstance(lmap, OccupancyGrid) or lmap.walls
-        row[X_BOX + B_WALLS] = 1.0 if self._walls else 0.0
+        row["walls"] = self._walls
         if isinstance(lmap, LandmarkMap):
-            row[X_BOX + B_COUNT] = lmap.n_landmarks
+            row["n_landmarks"] = lmap.n_landmarks
         if cfg.start == "fixed":
             if self.fixed_map is None:  # a generated map: each one may block the start
                 check_start_pose(lmap, cfg.start_pose[:2])
-            row[X_POSE : X_POSE + 3] = cfg.start_pose
+            row["pose"] = cfg.start_pose
         else:
-            row[X_POSE : X_POSE + 3] = self._random_free_pose(rng)
+            row["pose"] = self._random_free_pose(rng)
         self.crowd = None
         people = cfg.dynamic_obstacles
         if people is not None and people[0] > 0:
             assert isinstance(lmap, OccupancyGrid)
             self.crowd = Crowd.spawn(lmap, int(people[0]), float(people[1]), float(people[2]),
-                                     row[X_POSE : X_POSE + 2], rng)
+                                     row["pose"][:2], rng)
         self._init_belief(rng)
         self.t = 0
         self.kidnapped = False
@@ -246,7 +223,7 @@ class ParticleCore(StateViews):
         """Mean ``(3,)`` (the true start plus ``initial_error_std`` noise) and covariance
         ``(3, 3)`` of a Gaussian initial belief."""
         cfg = self.config
-        mean = self.state[0, X_POSE : X_POSE + 3] + rng.standard_normal(3) * cfg.initial_error_std
+        mean = self.pose[0] + rng.standard_normal(3) * cfg.initial_error_std
         mean[2] = wrap_angle(mean[2])
         return mean, np.diag(np.square(cfg.initial_belief_std))
 
@@ -364,12 +341,12 @@ class ParticleCore(StateViews):
         self.t += 1
         kidnapped_now = self.t == self.kidnap_step
         if kidnapped_now:
-            self.state[0, X_POSE : X_POSE + 3] = self._random_free_pose(rng)
+            self.pose[0] = self._random_free_pose(rng)
             self.kidnapped = True
         collided = self._move_truth(v, omega, rng)
         if self.crowd is not None:
             assert isinstance(self.maps[0], OccupancyGrid)
-            self.crowd.step(self.maps[0], self.config.dt, self.state[0, X_POSE : X_POSE + 2], rng)
+            self.crowd.step(self.maps[0], self.config.dt, self.pose[0, :2], rng)
         # a blocked robot did not move: the filter predicts with V = 0
         self._filter_step(0.0 if collided else v, omega, rng)
         self._finish(collided, kidnapped_now, first=False)
@@ -380,7 +357,7 @@ class ParticleCore(StateViews):
         belief = self.belief
         assert belief is not None
         belief.predict(np.array([v, omega]), rng)
-        pose = self.state[0, X_POSE : X_POSE + 3]
+        pose = self.pose[0]
         lmap = self.maps[0]
         if isinstance(lmap, OccupancyGrid):
             ranges = self._scan(rng)
@@ -403,7 +380,7 @@ class ParticleCore(StateViews):
         """The lidar scan ``(M,)`` (m) from the true pose (people occlude), kept in
         :attr:`ranges`."""
         assert self.true_lidar is not None
-        pose = self.state[0, X_POSE : X_POSE + 3]
+        pose = self.pose[0]
         discs = self.crowd.discs if self.crowd is not None else None
         ranges = self.true_lidar.measure(pose, self._grid_arrays, rng, discs)
         self.ranges[0] = ranges
@@ -427,11 +404,11 @@ class ParticleCore(StateViews):
 
     def _move_truth(self, v: float, omega: float, rng: np.random.Generator) -> bool:
         """Move the true robot with noise; returns whether walls blocked the translation."""
-        pose = self.state[0, X_POSE : X_POSE + 3]
+        pose = self.pose[0]
         noise = self.models.motion.noise_root @ rng.standard_normal(3)
         lmap = self.maps[0]
         if not isinstance(lmap, OccupancyGrid):
-            box = self.state[0, X_BOX : X_BOX + 4]
+            box = self.rows[0]["bounds"]
             return bool(move_within_bounds(pose, v, omega, self.config.dt, noise, box,
                                            self._walls))
         crowd = self.crowd
@@ -442,20 +419,19 @@ class ParticleCore(StateViews):
 
     def _finish(self, collided: bool, kidnapped_now: bool, first: bool) -> None:
         cfg = self.config
-        row = self.state[0]
-        stats = row[X_STATS : X_STATS + N_STATS]
+        row = self.rows[0]
         mean, cov, entropy, logdet = self._belief_summary()
-        row[X_MEAN : X_MEAN + 3] = mean
-        row[X_COV : X_COV + 9] = cov.ravel()
+        row["mean"] = mean
+        row["cov"] = cov
         trace = float(np.trace(cov))
-        stats[S_UNCERTAINTY_REWARD] = 0.0 if first else uncertainty_reward(
-            REWARD_CODES[cfg.reward], stats[S_ENTROPY], entropy, stats[S_LOGDET], logdet,
-            stats[S_TRACE], trace,
+        row["uncertainty_reward"] = 0.0 if first else uncertainty_reward(
+            REWARD_CODES[cfg.reward], row["entropy"], entropy, row["logdet"], logdet,
+            row["trace"], trace,
         )
-        stats[S_ENTROPY] = entropy
-        stats[S_LOGDET] = logdet
-        stats[S_TRACE] = trace
-        pose = row[X_POSE : X_POSE + 3]
+        row["entropy"] = entropy
+        row["logdet"] = logdet
+        row["trace"] = trace
+        pose = row["pose"]
         pos_err = float(np.hypot(pose[0] - mean[0], pose[1] - mean[1]))
         head_err = float(abs(wrap_angle(pose[2] - mean[2])))
         # with a kidnapping ahead, or just behind, localizing now is not yet the end of the task
@@ -466,17 +442,17 @@ class ParticleCore(StateViews):
             cov, pos_err, head_err, unresolved, cfg.localized_position_std,
             cfg.localized_heading_std, cfg.success_position_tol, cfg.success_heading_tol,
         )
-        stats[S_POS_ERR] = pos_err
-        stats[S_HEAD_ERR] = head_err
-        stats[S_POS_STD] = pos_std
-        stats[S_HEAD_STD] = head_std
-        stats[S_COLLIDED] = 1.0 if collided else 0.0
-        stats[S_LOCALIZED] = 1.0 if localized else 0.0
-        stats[S_SUCCESS] = 1.0 if success else 0.0
-        stats[S_TERMINAL] = 1.0 if terminal else 0.0
-        stats[S_OUTCOME] = 0.0 if first else outcome_term(terminal, success, cfg.outcome_reward)
-        stats[S_KIDNAPPED] = 1.0 if kidnapped_now else 0.0
-        stats[S_N_VISIBLE] = float(self.visible[0].sum()) if not self.grid_mode else 0.0
+        row["pos_err"] = pos_err
+        row["head_err"] = head_err
+        row["pos_std"] = pos_std
+        row["head_std"] = head_std
+        row["collided"] = collided
+        row["localized"] = localized
+        row["success"] = success
+        row["terminal"] = terminal
+        row["outcome"] = 0.0 if first else outcome_term(terminal, success, cfg.outcome_reward)
+        row["kidnapped"] = kidnapped_now
+        row["n_visible"] = float(self.visible[0].sum()) if not self.grid_mode else 0.0
         self._write_observation(mean, cov, entropy)
 
     def _belief_summary(self) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float]:
@@ -492,8 +468,7 @@ class ParticleCore(StateViews):
 
     def _write_observation(self, mean: NDArray, cov: NDArray, entropy: float) -> None:
         out = self.obs[0]
-        row = self.state[0]
-        bounds = row[X_BOX : X_BOX + 4]
+        bounds = self.rows[0]["bounds"]
         write_belief_header(mean, cov, entropy, bounds, out)
         # where the belief's mass is, on a coarse grid over the map
         cells = HISTOGRAM_CELLS
@@ -509,7 +484,7 @@ class ParticleCore(StateViews):
             assert isinstance(lmap, LandmarkMap)
             write_landmark_slots(
                 mean, self.z[0], self.visible[0], self.landmarks[0], lmap.n_landmarks,
-                self.models.sensor.kind, float(self.models.params[P_SCALE]), out[start:],
+                self.models.sensor.kind, self.models.scale, out[start:],
             )
 
     def _mass_histogram(self, bounds: NDArray) -> NDArray[np.float64]:

@@ -21,7 +21,7 @@ import active_loc
 from active_loc.beliefs import MCLBelief
 from active_loc.beliefs.grid import GridBelief
 from active_loc.envs import ActiveLocalizationEnv
-from active_loc.envs.landmark_core import S_ENTROPY, S_LOGDET, S_TRACE, X_NOISE_CURSOR
+from active_loc.envs.landmark_core import ROW_DTYPE, STATE_SIZE, WORLD_DTYPE, WORLD_SIZE
 from active_loc.maps import OccupancyGrid
 
 ENV_IDS = [env_id for env_id, _, _ in active_loc.ENV_IDS]
@@ -171,14 +171,14 @@ def test_the_outcome_term_rewards_a_right_belief_and_charges_a_confidently_wrong
 def uncertainty(env: gym.Env, reward: str, info: dict[str, Any]) -> float:
     """The quantity whose drop the telescoping reward ``reward`` pays, as the core recorded
     it (that it is the belief's log det / trace is checked per belief elsewhere)."""
-    stats = env.unwrapped.core.stats[0]
+    row = env.unwrapped.core.rows[0]
     if reward == "info_gain":
-        assert stats[S_ENTROPY] == info["entropy"]
+        assert row["entropy"] == info["entropy"]
         return info["entropy"]
     if reward == "logdet":
-        assert np.isfinite(stats[S_LOGDET])
-        return float(stats[S_LOGDET])
-    return float(stats[S_TRACE])
+        assert np.isfinite(row["logdet"])
+        return float(row["logdet"])
+    return float(row["trace"])
 
 
 def belief_summary(belief: Any) -> tuple[np.ndarray, ...]:
@@ -658,7 +658,7 @@ def test_step_noise_is_drawn_for_the_landmarks_in_view_only() -> None:
     cursor = None
     for _ in range(100):
         _, _, terminated, _, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
-        now = int(core.state[0, X_NOISE_CURSOR])
+        now = int(core.rows[0]["noise_cursor"])
         if cursor is not None and now > cursor:  # not refilled on this step
             assert now - cursor == 3 + 2 * info["n_visible"]
         cursor = now
@@ -666,10 +666,48 @@ def test_step_noise_is_drawn_for_the_landmarks_in_view_only() -> None:
             break
     assert core.noise_source[0] is env.unwrapped.np_random
     env.reset()  # the same Generator goes on: so does its buffer
-    assert int(core.state[0, X_NOISE_CURSOR]) == cursor
+    assert int(core.rows[0]["noise_cursor"]) == cursor
     env.reset(seed=7)  # a new Generator: the old buffer is dropped
-    assert core.state[0, X_NOISE_CURSOR] >= core.noise.shape[1]
+    assert core.rows[0]["noise_cursor"] >= core.noise.shape[1]
     again = gym.make(LANDMARK)
     again.reset(seed=7)
     assert np.array_equal(env.step(np.array([0.5, 0.1], dtype=np.float32))[0],
                           again.step(np.array([0.5, 0.1], dtype=np.float32))[0])
+
+
+@pytest.mark.parametrize(("dtype", "size"), [(ROW_DTYPE, STATE_SIZE), (WORLD_DTYPE, WORLD_SIZE)])
+def test_the_named_records_cover_the_packed_rows_without_overlap(dtype: np.dtype,
+                                                                 size: int) -> None:
+    """Every float of a packed row has exactly one name, so the Python side can reach all of
+    it without offsets."""
+    owner = np.full(size, -1)
+    for k, name in enumerate(dtype.names):
+        field, offset = dtype.fields[name][:2]
+        first, count = offset // 8, field.itemsize // 8
+        assert np.all(owner[first : first + count] == -1), f"{name} overlaps another field"
+        owner[first : first + count] = k
+    assert np.all(owner >= 0) and dtype.itemsize == 8 * size
+
+
+@pytest.mark.parametrize("env_id", [LANDMARK, "ActiveLoc/LandmarkMCL-v0", "ActiveLoc/GridMCL-v0"])
+def test_the_named_rows_agree_with_the_step_outcome(env_id: str) -> None:
+    """The outcome a shell reads and the named row are the same numbers: a field named at the
+    wrong offset shows here."""
+    env = gym.make(env_id)
+    core = env.unwrapped.core
+    env.reset(seed=3)
+    rng = np.random.default_rng(3)
+    for _ in range(40):
+        _, _, terminated, truncated, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+        row, outcome = core.rows[0], core.outcome(0)
+        assert outcome.pose_error == row["pos_err"] == info["pose_error"]
+        assert outcome.entropy == row["entropy"] == info["entropy"]
+        assert outcome.collided == bool(row["collided"])
+        assert outcome.localized == bool(row["localized"]) == info["localized"]
+        assert outcome.success == bool(row["success"]) == info["is_success"]
+        assert np.array_equal(core.pose[0], row["pose"])
+        assert math.hypot(*(row["pose"][:2] - row["mean"][:2])) == pytest.approx(row["pos_err"])
+        for flag in ("collided", "localized", "success", "terminal", "kidnapped"):
+            assert row[flag] in (0.0, 1.0)
+        if terminated or truncated:
+            env.reset()

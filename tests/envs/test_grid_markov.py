@@ -15,7 +15,6 @@ from scipy.integrate import quad
 
 import active_loc  # noqa: F401  (registers the ids)
 from active_loc.beliefs.grid import GridBelief
-from active_loc.envs.landmark_core import X_COV, X_MEAN
 from active_loc.envs.observations import BELIEF_HEADER
 from active_loc.envs.particle_core import HISTOGRAM_CELLS
 from active_loc.maps import OccupancyGrid
@@ -227,9 +226,9 @@ def test_state_row_and_observation_come_from_the_histogram() -> None:
     for _ in range(15):
         obs, _, _, _, info = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
         mean, cov = belief.moments()
-        row = core.state[0]
-        assert np.array_equal(row[X_MEAN : X_MEAN + 3], mean[0])
-        assert np.array_equal(row[X_COV : X_COV + 9], cov[0].ravel())
+        row = core.rows[0]
+        assert np.array_equal(row["mean"], mean[0])
+        assert np.array_equal(row["cov"], cov[0])
         assert info["entropy"] == belief.entropy()[0]
         # the 8 x 8 histogram is the x-y marginal pooled over the map
         marginal = belief.marginal_xy()[0]

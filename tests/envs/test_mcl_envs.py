@@ -12,7 +12,6 @@ import pytest
 import active_loc  # noqa: F401  (registers the ids)
 from active_loc.agents import TextbookAgent
 from active_loc.beliefs.particle_stats import ENTROPY_BINS
-from active_loc.envs.landmark_core import S_LOGDET, S_TRACE, X_COV, X_MEAN
 from active_loc.geometry import wrap_angle
 from active_loc.maps import rooms_map
 from tests.envs.wander import wander
@@ -41,7 +40,7 @@ def test_textbook_with_mcl_is_problem_2() -> None:
             action = agent.act(obs, env.unwrapped.planner_view())
             obs, _, terminated, truncated, _ = env.step(action)
             done = terminated or truncated
-            error = core.pose[0] - core.state[0, X_MEAN : X_MEAN + 3]
+            error = core.pose[0] - core.belief_mean[0]
             error[2] = wrap_angle(error[2])
             errors.append(error)
     rmse = np.sqrt(np.mean(np.square(errors), axis=0))
@@ -150,11 +149,11 @@ def test_particle_log_det_is_finite_and_matches_the_binned_covariance() -> None:
     for _ in range(20):
         _, reward, *_ = env.step(env.action_space.sample())
         assert np.isfinite(reward)
-        row = env.unwrapped.core.state[0]
-        cov = row[X_COV : X_COV + 9].reshape(3, 3)
+        row = env.unwrapped.core.rows[0]
+        cov = row["cov"]
         logdet = np.linalg.slogdet(cov + np.diag(bin_variance))[1]
-        assert env.unwrapped.core.stats[0, S_LOGDET] == pytest.approx(logdet, abs=1e-9)
-        assert env.unwrapped.core.stats[0, S_TRACE] == pytest.approx(np.trace(cov), abs=1e-12)
+        assert row["logdet"] == pytest.approx(logdet, abs=1e-9)
+        assert row["trace"] == pytest.approx(np.trace(cov), abs=1e-12)
 
 
 def kidnapped_recoveries(augmented: bool, seeds: range) -> list[bool]:

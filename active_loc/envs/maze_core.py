@@ -144,7 +144,7 @@ def maze_step_kernel(
     state: NDArray, actions: NDArray, active: NDArray, prob: NDArray, scratch: NDArray,
     free: NDArray, evidence: NDArray, tables: NDArray, likelihood: NDArray,
     log_cell_volume: float, offsets: NDArray, weights: NDArray, code: int, terminate: bool,
-    image: NDArray, extra: NDArray, episode_length: int,
+    image: NDArray, extra: NDArray, episode_length: int, collision_penalty: float,
 ) -> None:
     """One step of every active member with its action (checked by the caller; inactive
     members are left as they are)."""
@@ -166,8 +166,8 @@ def maze_step_kernel(
             s.uncertainty = s.max_prob
         else:
             s.uncertainty = uncertainty_reward(code, previous, s.entropy, 0.0, 0.0, 0.0, 0.0)
-        # the maze has no step cost, collision penalty or outcome term
-        s.reward = step_reward(s.uncertainty, s.collided, 0.0, 0.0, 0.0)
+        # the maze has no step cost or outcome term
+        s.reward = step_reward(s.uncertainty, s.collided, 0.0, collision_penalty, 0.0)
         s.terminated = terminate and s.localized
         s.truncated = not s.terminated and s.steps >= episode_length
 
@@ -182,6 +182,7 @@ class MazeCore:
         reward: ``"info_gain"``, ``"neg_entropy"`` or ``"max_prob"``.
         terminate_when_localized: a member's episode terminates when its belief max is 1.
         episode_length: L, steps per episode (truncation).
+        collision_penalty: subtracted from the reward of a forward move into a wall (>= 0).
 
     Attributes:
         state: ``(B,)`` :data:`MAZE_STATE` records; ``state["entropy"]`` is every member's
@@ -193,7 +194,7 @@ class MazeCore:
 
     def __init__(
         self, size: int, batch_size: int, *, flat: bool, reward: str,
-        terminate_when_localized: bool, episode_length: int,
+        terminate_when_localized: bool, episode_length: int, collision_penalty: float = 0.0,
     ) -> None:
         n, nb = int(size), int(batch_size)
         self.size = n
@@ -215,6 +216,7 @@ class MazeCore:
             self._extra = np.zeros((nb, 2), dtype=np.float32)  # not observed
         self._code = reward_code(reward)
         self._terminate = bool(terminate_when_localized)
+        self._collision_penalty = float(collision_penalty)
         self.walls: list[NDArray[np.bool_]] = [np.ones((n, n), dtype=bool)] * nb
         self._sensors: list[DepthSensor | None] = [None] * nb
         self._grids: list[OccupancyGrid | None] = [None] * nb
@@ -242,7 +244,7 @@ class MazeCore:
         maze_step_kernel(self.state, actions, active, prob, scratch, free, evidence, self.tables,
                          self._likelihood, self.belief.log_cell_volume, _NO_NOISE.offsets,
                          _NO_NOISE.weights, self._code, self._terminate, self._image,
-                         self._extra, self.episode_length)
+                         self._extra, self.episode_length, self._collision_penalty)
 
     def step_member(self, b: int, action: int) -> None:
         """Step member ``b`` alone with ``action`` (in [0, 3), checked by the caller)."""

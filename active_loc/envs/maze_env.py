@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 
 from active_loc.beliefs.grid import GridBelief
 from active_loc.envs.actions import check_action
+from active_loc.envs.field_checks import check_positive
 from active_loc.envs.maze_core import (
     LOCALIZED_PROB,
     MOVE_FORWARD,
@@ -64,6 +65,8 @@ class MazeConfig:
     # TEST_SET_SEED). None with maze_index=None: random mazes
     test_set: MazeSet | int | str | os.PathLike[str] | None = None
     terminate_when_localized: bool = False  # end the episode as soon as the belief max is 1
+    # subtracted from the reward of a forward move into a wall (0: the paper's reward)
+    collision_penalty: float = 0.0
     action_type: str = "discrete"  # the only one: the maze has 3 discrete actions
     belief: str = "grid"  # the only one: the exact Markov filter
 
@@ -91,6 +94,7 @@ class MazeConfig:
                 f"belief must be 'grid' for Maze-v0 (the exact Markov filter), got "
                 f"{self.belief!r}"
             )
+        check_positive("collision_penalty", self.collision_penalty, allow_zero=True)
         if not isinstance(self.terminate_when_localized, (bool, np.bool_)):
             raise ValueError(
                 f"terminate_when_localized must be a bool, got {self.terminate_when_localized!r}"
@@ -349,11 +353,11 @@ class MazeEnv(gym.Env):
 
     ``gymnasium.make("ActiveLoc/Maze-v0", size=7, episode_length=None, observation="belief",
     reward="info_gain", maze_index=None, test_set=None, terminate_when_localized=False,
-    render_mode=None)``: the fields of :class:`MazeConfig`. ``render_mode="rgb_array"`` draws
-    the maze, the belief as a heat map (max over headings), its most probable cell (blue
-    frame) and the true pose (green triangle); ``render_mode="human"`` shows that frame in a
-    pyplot window after every reset and step (matplotlib; on a non-interactive backend such as
-    Agg it only draws).
+    collision_penalty=0.0, render_mode=None)``: the fields of :class:`MazeConfig`.
+    ``render_mode="rgb_array"`` draws the maze, the belief as a heat map (max over headings),
+    its most probable cell (blue frame) and the true pose (green triangle);
+    ``render_mode="human"`` shows that frame in a pyplot window after every reset and step
+    (matplotlib; on a non-interactive backend such as Agg it only draws).
     """
 
     metadata: dict[str, Any] = {"render_modes": ["human", "rgb_array"], "render_fps": 4}  # noqa: RUF012
@@ -370,6 +374,7 @@ class MazeEnv(gym.Env):
         reward: str = "info_gain",
         action_type: str = "discrete",
         belief: str = "grid",
+        collision_penalty: float = 0.0,
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
@@ -379,7 +384,7 @@ class MazeEnv(gym.Env):
             size=size, episode_length=episode_length, observation=observation, reward=reward,
             maze_index=maze_index, test_set=test_set,
             terminate_when_localized=terminate_when_localized, action_type=action_type,
-            belief=belief,
+            belief=belief, collision_penalty=collision_penalty,
         )  # fmt: skip
         self.render_mode = render_mode
         self.size: int = self.config.size
@@ -390,8 +395,10 @@ class MazeEnv(gym.Env):
         shape = (5 * n * n + 2,) if self._flat else (5, n, n)
         self.observation_space = gym.spaces.Box(0.0, 1.0, shape, dtype=np.float32)
         self._reward_name = self.config.reward
-        # the maze has no step cost, collision penalty or outcome term
-        self.reward_settings = RewardSettings(self._reward_name, 0.0, 0.0, has_outcome=False)
+        # the maze has no step cost or outcome term
+        self.reward_settings = RewardSettings(
+            self._reward_name, 0.0, float(self.config.collision_penalty), has_outcome=False
+        )
         self._terminate_when_localized = bool(self.config.terminate_when_localized)
         test_set = self.config.test_set
         if isinstance(test_set, MazeSet):
@@ -415,6 +422,7 @@ class MazeEnv(gym.Env):
             self.size, batch_size, flat=self._flat, reward=self._reward_name,
             terminate_when_localized=self._terminate_when_localized,
             episode_length=self.episode_length,
+            collision_penalty=self.reward_settings.collision_penalty,
         )  # fmt: skip
 
     def attach(self, core: MazeCore, member: int) -> None:

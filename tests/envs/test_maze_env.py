@@ -114,6 +114,9 @@ def test_spaces_and_default_episode_length(size: int) -> None:
         ({"action_type": "continuous"}, "action_type"),
         ({"belief": "mcl"}, "belief"),
         ({"terminate_when_localized": "yes"}, "terminate_when_localized"),
+        ({"collision_penalty": -0.1}, "collision_penalty"),
+        ({"collision_penalty": float("nan")}, "collision_penalty"),
+        ({"collision_penalty": "high"}, "collision_penalty"),
         ({"maze_index": -1}, "maze_index"),
         ({"maze_index": 5, "test_set": 5}, "maze_index"),
         ({"test_set": 0}, "test_set"),
@@ -153,6 +156,34 @@ def test_actions_move_the_robot_as_specified_and_walls_block() -> None:
     assert info["depth"] == 4  # (2, 1) to (5, 1)
     env.step(TURN_RIGHT)  # east -> south
     assert env.true_pose == (2, 1, 3)
+
+
+def test_a_collision_penalty_is_charged_on_blocked_moves_only() -> None:
+    """The reward of a forward move into a wall loses ``collision_penalty``; turns and free
+    moves keep the paper's reward. The vector env's members are charged alike."""
+    plain = one_maze_env(snake(), (1, 1, 2))
+    charged = one_maze_env(snake(), (1, 1, 2), collision_penalty=0.25)
+    plain.reset()
+    charged.reset()
+    bumps = 0
+    for action in (MOVE_FORWARD, TURN_LEFT, TURN_LEFT, MOVE_FORWARD):  # a bump, then free
+        _, r_plain, _, _, _ = plain.step(action)
+        _, r_charged, _, _, info = charged.step(action)
+        blocked = info["collisions"] > bumps
+        bumps = info["collisions"]
+        assert info["reward_terms"]["collision"] == (-0.25 if blocked else 0.0)
+        assert r_charged == pytest.approx(r_plain + info["reward_terms"]["collision"])
+    assert bumps == 1
+    venv = gym.make_vec("ActiveLoc/Maze-v0", 2, vectorization_mode="vector_entry_point",
+                        collision_penalty=0.25)
+    single = gym.make("ActiveLoc/Maze-v0", collision_penalty=0.25)
+    venv.reset(seed=4)
+    single.reset(seed=4)
+    for _ in range(10):
+        _, rewards, _, _, infos = venv.step(np.array([MOVE_FORWARD, TURN_LEFT]))
+        _, reward, _, _, info = single.step(MOVE_FORWARD)
+        assert rewards[0] == reward and infos["reward_collision"][0] == (
+            info["reward_terms"]["collision"])
 
 
 def test_depth_is_cells_to_the_first_wall_counting_the_robot_cell() -> None:

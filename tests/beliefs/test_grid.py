@@ -308,8 +308,10 @@ def test_update_log_shifts_each_member_by_its_own_maximum_in_both_twins() -> Non
     tops = np.array([ll[0].max(), 0.0, ll[2].max()])
     evidence = reference.update(np.exp(ll - tops[:, None, None, None]))
     log_evidence = belief.update_log(ll)
-    assert np.array_equal(belief.prob, reference.prob)
-    assert np.array_equal(log_evidence[[0, 2]], np.log(evidence[[0, 2]]) + tops[[0, 2]])
+    # the kernel's exp and NumPy's (SIMD, chosen by the CPU) may differ in the last bit
+    np.testing.assert_allclose(belief.prob, reference.prob, rtol=1e-13, atol=0.0)
+    np.testing.assert_allclose(log_evidence[[0, 2]], np.log(evidence[[0, 2]]) + tops[[0, 2]],
+                               rtol=1e-13)
     assert np.isneginf(log_evidence[1])
     prob = {}
     for kernel in (update_log_kernel, update_log_kernel_parallel):
@@ -318,7 +320,7 @@ def test_update_log_shifts_each_member_by_its_own_maximum_in_both_twins() -> Non
         assert kernel(state._prob, ll, state._free, np.empty_like(state._prob), *out)
         prob[kernel] = state._prob.copy()
     assert np.array_equal(prob[update_log_kernel], prob[update_log_kernel_parallel])
-    assert np.array_equal(prob[update_log_kernel], reference.prob)
+    assert np.array_equal(prob[update_log_kernel], belief.prob)
 
 
 def test_entropy_is_histogram_entropy_plus_log_cell_volume() -> None:

@@ -528,7 +528,9 @@ def executed_controls(actions: NDArray, params: NDArray, collided: NDArray) -> N
 
 class StateViews:
     """Named views of the ``state`` array every core keeps (one row per member): outside the
-    kernels, the rows are read and written through these, never at offsets."""
+    kernels, the rows are read and written through these, never at offsets. ``pose``,
+    ``belief_mean`` and ``belief_cov`` are plain slices, not fields of :attr:`rows`: the shells
+    read them every step, and a record view costs about a microsecond to build."""
 
     state: NDArray[np.float64]
 
@@ -540,7 +542,7 @@ class StateViews:
     @property
     def pose(self) -> NDArray[np.float64]:
         """``(B, 3)`` true poses (a view)."""
-        return self.state[:, X_POSE : X_POSE + 3]  # sliced, not through rows: read every step
+        return self.state[:, X_POSE : X_POSE + 3]
 
     @property
     def stats(self) -> NDArray[np.float64]:

@@ -11,9 +11,11 @@ own outputs; reductions sum fixed blocks in a fixed order), so the choice never 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import threading
 import types
+from collections.abc import Iterator
 from typing import Any
 
 import numba
@@ -50,6 +52,24 @@ def set_thread_count(threads: int) -> None:
     """Run the calling thread's parallel kernels on ``threads`` numba threads (1: the serial
     twins; 0: numba's default). Worker threads that already share the cores set 1."""
     _local.threads = int(threads)
+
+
+@contextlib.contextmanager
+def thread_count(threads: int | None) -> Iterator[None]:
+    """:func:`set_thread_count` for the calls inside the ``with`` block, then the calling
+    thread's setting as it was; None leaves the setting alone."""
+    if threads is None:
+        yield
+        return
+    before = getattr(_local, "threads", 0)
+    _local.threads = int(threads)
+    try:
+        yield
+    finally:
+        _local.threads = before
+        if threads > 1 and _PrangeSafety.launched and not _PrangeSafety.forbidden:
+            # numba's own setting is per thread too: put back what use_parallel will not
+            numba.set_num_threads(before or numba.config.NUMBA_NUM_THREADS)
 
 
 def prange_forbidden() -> bool:

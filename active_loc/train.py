@@ -621,7 +621,7 @@ def eval_summary(out: Path) -> dict[str, Any] | None:
 NATIVE_MIN_ENVS = 8
 #: beliefs whose steps take milliseconds in kernels that release the GIL: the native vector
 #: env's worker threads run two of them at once on two cores
-THREADED_BELIEFS = ("mcl", "grid")
+THREADED_BELIEFS = ("mcl",)
 
 
 def resolve_vec_env(
@@ -631,10 +631,11 @@ def resolve_vec_env(
     """``"auto"`` resolved to ``"native"`` where the package's vector env is faster, else
     ``"dummy"``:
 
-    * the ids whose vector env steps the batch in one kernel call, from
+    * the EKF ids, whose vector env steps the batch in one kernel call, from
       :data:`NATIVE_MIN_ENVS` envs on. Through SB3's API the native env took 13.8% of PPO's
       wall time at 8 envs against 24.4% for ``DummyVecEnv``, and 9.4% against 33.5% at 256;
-    * the particle and grid filters from 2 envs on, on a machine with 2 cores or more: their
+    * the grid Markov ids, whose members' beliefs are stepped together, from 2 envs on;
+    * the particle filters from 2 envs on, on a machine with 2 cores or more: their
       worker threads step two envs at once (PPO on ``LandmarkMCL-v0`` with 8 envs: 141
       steps/s against 81 with ``DummyVecEnv``). See docs/performance.md.
 
@@ -666,7 +667,9 @@ def _native_speed_up(env_id: str, env_kwargs: dict[str, Any], n_envs: int) -> st
     try:
         unwrapped = env.unwrapped
         if batched_core(unwrapped):
-            return "kernel" if n_envs >= NATIVE_MIN_ENVS else None
+            # a grid Markov member is milliseconds of kernels: batching pays from 2 on
+            grid = unwrapped.config.belief == "grid"
+            return "kernel" if grid or n_envs >= NATIVE_MIN_ENVS else None
         # the maze's grid belief is too cheap a step for threads to pay off
         threaded = (
             isinstance(unwrapped, ActiveLocalizationEnv)

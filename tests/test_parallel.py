@@ -66,3 +66,20 @@ def test_a_child_forked_after_a_parallel_kernel_steps_on_the_serial_twins():
     assert child.exitcode == 0
     for a, b in zip(parent, child_trace, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+def test_thread_count_holds_inside_its_block_only():
+    seen: dict[str, Any] = {}
+
+    def body() -> None:
+        with parallel.thread_count(1):
+            seen["inside"] = parallel.use_parallel()
+        seen["after"] = parallel.use_parallel()
+        with parallel.thread_count(None):
+            seen["none"] = parallel.use_parallel()
+
+    thread = threading.Thread(target=body)
+    thread.start()
+    thread.join()
+    forbidden = parallel.prange_forbidden()
+    assert seen == {"inside": False, "after": not forbidden, "none": not forbidden}

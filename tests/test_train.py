@@ -244,10 +244,10 @@ def test_auto_vec_env_is_native_where_it_is_faster() -> None:
     assert resolve_vec_env("auto", "ActiveLoc/LandmarkEKF-v0", {}, 8) == "native"
     assert resolve_vec_env("auto", "ActiveLoc/LandmarkEKF-v0", {}, 4) == "dummy"
     assert resolve_vec_env("auto", "ActiveLoc/Textbook-v0", {"action_type": "discrete"}) == "native"
-    threads = "native" if (os.cpu_count() or 1) >= 2 else "dummy"  # MCL and grid: 2 cores
+    threads = "native" if (os.cpu_count() or 1) >= 2 else "dummy"  # MCL: 2 cores
     assert resolve_vec_env("auto", "ActiveLoc/GridMCL-v0", {}) == threads
     assert resolve_vec_env("auto", "ActiveLoc/LandmarkMCL-v0", {}, 2) == threads
-    assert resolve_vec_env("auto", "ActiveLoc/GridMarkov-v0", {}, 4) == threads
+    assert resolve_vec_env("auto", "ActiveLoc/GridMarkov-v0", {}, 2) == "native"  # batched
     assert resolve_vec_env("auto", "ActiveLoc/GridMCL-v0", {}, 1) == "dummy"
     assert resolve_vec_env("auto", "ActiveLoc/LandmarkEKFUnknown-v0", {}) == "dummy"
     assert resolve_vec_env("auto", "ActiveLoc/Maze-v0", {"size": 7}) == "dummy"
@@ -262,6 +262,7 @@ def test_auto_vec_env_with_held_actions_uses_processes_for_the_threads() -> None
     assert resolve_vec_env("auto", "ActiveLoc/GridMCL-v0", {}, 8, action_repeat=5) == processes
     assert resolve_vec_env("auto", "ActiveLoc/LandmarkEKF-v0", {}, 64, action_repeat=5) == "dummy"
     assert resolve_vec_env("auto", "ActiveLoc/Maze-v0", {"size": 7}, 8, action_repeat=2) == "dummy"
+    assert resolve_vec_env("auto", "ActiveLoc/GridMarkov-v0", {}, 8, action_repeat=2) == "dummy"
     assert resolve_vec_env("dummy", "ActiveLoc/GridMCL-v0", {}, 8, action_repeat=5) == "dummy"
 
 

@@ -50,7 +50,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import ndimage
 
-from active_loc.beliefs.grid_motion import fractional_kernels, noise_in_cells, unicycle_shift
+from active_loc.beliefs.grid_motion import fractional_kernels, noise_in_cells, unicycle_shifts
 from active_loc.maps.occupancy import FREE, OccupancyGrid
 from active_loc.parallel import parallel_twin, pick
 
@@ -800,6 +800,35 @@ class GridBelief:
         self.__dict__.pop("_clearance_cache", None)
         uniform_kernel(self._prob, self._free, b)
 
+    def set_member(self, b: int, source: GridBelief) -> None:
+        """Make member ``b`` a copy of the one-member belief ``source``: its free mask (and
+        clearance), probabilities and evidence. ``source`` must have this belief's cells,
+        headings and origin. The masks are replaced, not written, as in
+        :meth:`set_member_free`."""
+        if source.shape[1:] != self.shape[1:] or source.batch_size != 1:
+            expected = (1, *self.shape[1:])
+            raise ValueError(
+                f"set_member needs a one-member belief of shape {expected}, got "
+                f"{source.shape}: the members of a batch share the map's grid"
+            )
+        if source.cell_size != self.cell_size or source.origin != self.origin:
+            raise ValueError(
+                f"set_member: the source's cells ({source.cell_size} m from {source.origin}) "
+                f"differ from this belief's ({self.cell_size} m from {self.origin})"
+            )
+        masks = self._free.copy()
+        masks[b] = source._free[0]
+        masks.setflags(write=False)
+        self._free = masks
+        cached = self.__dict__.get("_clearance_cache")
+        if cached is not None:
+            clearance = cached.copy()
+            clearance[b] = source.clearance[0]
+            clearance.setflags(write=False)
+            self._clearance_cache = clearance
+        self._prob[b] = source._prob[0]
+        self._evidence[b] = source._evidence[0]
+
     def state_arrays(
         self,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64]]:
@@ -972,12 +1001,16 @@ class GridBelief:
                                                 self._prob)
 
     def predict_unicycle(
-        self, v: float, omega: float, dt: float, noise_std: ArrayLike = (0.0, 0.0, 0.0)
+        self, v: ArrayLike, omega: ArrayLike, dt: float, noise_std: ArrayLike = (0.0, 0.0, 0.0)
     ) -> None:
         """Prediction step of the unicycle (:mod:`active_loc.motion`) on the grid: speed ``v``
         (m/s) and turn rate ``omega`` (rad/s) for ``dt`` (s), with the per-step noise standard
-        deviations ``noise_std`` ``(3,)`` (m, m, rad); the same control for every member."""
-        shift, turn = unicycle_shift(v, omega, dt, self.cell_size, self.n_headings)
+        deviations ``noise_std`` ``(3,)`` (m, m, rad); ``v`` and ``omega`` are numbers (the
+        same control for every member) or ``(B,)`` (one per member)."""
+        b = self.batch_size
+        speeds = np.broadcast_to(np.asarray(v, dtype=np.float64), (b,))
+        rates = np.broadcast_to(np.asarray(omega, dtype=np.float64), (b,))
+        shift, turn = unicycle_shifts(speeds, rates, dt, self.cell_size, self.n_headings)
         self.predict_fractional(
             shift, turn, noise_in_cells(noise_std, self.cell_size, self.n_headings)
         )

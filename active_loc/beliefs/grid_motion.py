@@ -226,15 +226,18 @@ def fractional_kernel(
             np.ascontiguousarray(weights.reshape(nb, nh, -1)))
 
 
-def unicycle_shift(
-    v: float, omega: float, dt: float, cell_size: float, n_headings: int
-) -> tuple[NDArray[np.float64], float]:
-    """The unicycle's mean motion on a grid: ``shift`` ``(H, 2)`` (cells, grid frame) of a
-    robot in each heading bin moving at ``v`` (m/s) for ``dt`` (s), and the turn (bins) of
-    ``omega`` (rad/s)."""
+def unicycle_shifts(
+    v: NDArray[np.float64], omega: NDArray[np.float64], dt: float, cell_size: float,
+    n_headings: int,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The unicycle's mean motion on a grid, for B controls: ``shift`` ``(B, H, 2)`` (cells,
+    grid frame) of a robot in each heading bin moving at ``v`` ``(B,)`` (m/s) for ``dt`` (s),
+    and the turn ``(B,)`` (bins) of ``omega`` ``(B,)`` (rad/s)."""
     theta = 2.0 * np.pi * np.arange(n_headings) / n_headings
     step = v * dt / cell_size
-    shift = np.column_stack([step * np.cos(theta), step * np.sin(theta)])
+    shift = np.empty((v.shape[0], n_headings, 2))
+    shift[:, :, 0] = step[:, None] * np.cos(theta)
+    shift[:, :, 1] = step[:, None] * np.sin(theta)
     return shift, omega * dt * n_headings / (2.0 * math.pi)
 
 

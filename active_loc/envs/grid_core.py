@@ -1,7 +1,7 @@
-"""The simulator of one localization episode with a grid Markov belief (the chapter's
-Algorithm 1) on an occupancy grid seen through a lidar.
+"""The simulator of B localization episodes with a grid Markov belief each (the chapter's
+Algorithm 1) on occupancy grids seen through a lidar, the beliefs stepped together.
 
-The episode is :class:`~active_loc.envs.particle_core.ParticleCore`'s (the same map draws,
+Each episode is :class:`~active_loc.envs.particle_core.ParticleCore`'s (the same map draws,
 true start, unicycle with noise blocked by walls, people, lidar scan, metrics and ``state``
 row); only the filter differs:
 
@@ -10,7 +10,10 @@ row); only the filter differs:
              -> lidar likelihood field at every free cell pose, tempered -> grid update
              -> metrics (histogram entropy + log cell volume, errors) and the observation row
 
-The belief (:class:`~active_loc.beliefs.grid.GridBelief`, B = 1) lives on cells of
+The beliefs are one :class:`~active_loc.beliefs.grid.GridBelief` of B members: each kernel
+(prediction, correction, entropy, moments) takes every member in one call, and only the
+scan's likelihood field is scored member by member (each against its own map). They live on
+cells of
 ``grid_cell_size`` m laid over the map from its origin, ``grid_headings`` heading bins each;
 a cell is free when it holds a FREE map cell (so the true pose is never ruled out by the
 discretization), and only free cell poses are scored. The likelihood of a scan is the
@@ -28,12 +31,22 @@ localized test (largest position std, heading std) is about the same density as 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import NDArray
 
 from active_loc.beliefs.grid import GridBelief, coarse_free_mask
 from active_loc.envs.config import LocalizationConfig
-from active_loc.envs.particle_core import HISTOGRAM_CELLS, ParticleCore, build_lidar
+from active_loc.envs.particle_core import (
+    HISTOGRAM_CELLS,
+    BeliefSummary,
+    Episode,
+    MapData,
+    ParticleCore,
+    build_lidar,
+)
 from active_loc.maps import LandmarkMap, OccupancyGrid
 from active_loc.sensors.lidar_lattice import (
     lattice_field_log_likelihood,
@@ -42,39 +55,75 @@ from active_loc.sensors.lidar_lattice import (
 )
 
 
-class GridCore(ParticleCore):
-    """One episode with a grid Markov belief on an occupancy grid with a lidar.
+@dataclass(frozen=True, eq=False)
+class GridMapData(MapData):
+    """:class:`~active_loc.envs.particle_core.MapData` and what the grid filter derives
+    from the same map.
 
-    Offers what :class:`active_loc.envs.localization_env.ActiveLocalizationEnv` uses of a core
-    (as :class:`~active_loc.envs.particle_core.ParticleCore`): ``state`` ``(1, STATE_SIZE)``,
-    ``obs`` ``(1, D)``, ``actions`` ``(1, 2)``, ``reset_member(0, rng)``, ``step(rngs)``,
-    ``belief`` (a :class:`~active_loc.beliefs.grid.GridBelief`), ``maps``, ``models``.
+    Attributes:
+        template: a one-member belief uniform over the map's free cells (its clearance
+            computed), copied at every reset.
+        free_index: ``(F,)`` the flat indices of the free cells.
+        poses: ``(F H, 3)`` their cell poses (m, m, rad).
+        lattice: the cells' columns ``(X,)`` and rows ``(Y,)`` in the map's grid coordinates,
+            and the bins' headings ``(H,)`` in its frame, for the likelihood field.
+        lattice_table: the likelihood field's table framed by its off-map value (None with
+            the beam model).
+        hist_bins: ``(X Y,)`` the ``8 x 8`` observation bin of each cell.
+        map_resolution: the map's cell side (m).
+    """
+
+    template: GridBelief | None = None
+    free_index: NDArray[np.int64] | None = None
+    poses: NDArray[np.float64] | None = None
+    lattice: tuple[NDArray[np.float64], ...] = ()
+    lattice_table: NDArray[np.float64] | None = None
+    hist_bins: NDArray[np.int64] | None = None
+    map_resolution: float = 1.0
+
+
+class GridCore(ParticleCore):
+    """B episodes with a grid Markov belief each, on occupancy grids with a lidar.
+
+    Offers the simulator interface of :class:`~active_loc.envs.particle_core.ParticleCore`;
+    :attr:`belief` is the :class:`~active_loc.beliefs.grid.GridBelief` of all B members
+    (member ``b``: ``belief.member(b)``). The members' maps must share one grid (cells and
+    origin), as the generated maps of a config and a fixed map do.
+
+    Args:
+        config: the task (``belief="grid"``, ``sensor="lidar"``).
+        batch_size: B.
     """
 
     belief_name = "grid"
 
-    def __init__(self, config: LocalizationConfig) -> None:
+    def __init__(self, config: LocalizationConfig, batch_size: int = 1) -> None:
         if not config.uses_grid:
             raise ValueError("GridCore runs on grid maps: it needs sensor='lidar'")
-        super().__init__(config)
-        self.belief: GridBelief | None = None  # type: ignore[assignment]
-        self._template: GridBelief | None = None  # uniform over the current map's free cells
-        self._free_index: NDArray[np.int64] | None = None  # (F,) flat free cells
-        self._poses: NDArray[np.float64] | None = None  # (F H, 3) their cell poses
-        # the likelihood field on the lattice: the cells' columns (X,) and rows (Y,) in the
-        # map's grid coordinates, the bins' headings in its frame (H,), the framed table
-        self._lattice: tuple[NDArray[np.float64], ...] = ()
-        self._lattice_table: NDArray[np.float64] | None = None
-        self._log_lik: NDArray[np.float64] | None = None  # (X, Y, H), -inf off the free cells
-        self._map_resolution = 1.0
-        self._hist_bins: NDArray[np.int64] | None = None  # (X Y,) 8 x 8 bin of each cell
-        noise = np.asarray(config.motion_noise_std, dtype=np.float64)
-        self._noise_std = noise
+        super().__init__(config, batch_size)
+        self.grid_belief: GridBelief | None = None  # all members (made at the first reset)
+        self._log_lik: NDArray[np.float64] | None = None  # (B, X, Y, H), -inf off free cells
+        self._noise_std = np.asarray(config.motion_noise_std, dtype=np.float64)
 
     # -- map and belief ------------------------------------------------------------------------
 
+    @property
+    def belief(self) -> GridBelief | None:  # type: ignore[override]
+        """The grid beliefs of all B members (None before the first reset)."""
+        return self.grid_belief
+
+    def member_belief(self, b: int) -> GridBelief | None:  # type: ignore[override]
+        """A copy of member ``b``'s belief alone (B = 1)."""
+        return None if self.grid_belief is None else self.grid_belief.member(b)
+
+    def _data(self, b: int) -> GridMapData:
+        data = self.episode(b).data
+        assert isinstance(data, GridMapData)
+        return data
+
     @classmethod
-    def derive_map_data(cls, cfg: LocalizationConfig, lmap: LandmarkMap | OccupancyGrid) -> dict:
+    def derive_map_data(cls, cfg: LocalizationConfig, lmap: LandmarkMap | OccupancyGrid
+                        ) -> GridMapData:
         """The simulator's per-map arrays, then the belief's cells, their poses and the
         lattice the likelihood field is scored on."""
         data = super().derive_map_data(cfg, lmap)
@@ -87,8 +136,8 @@ class GridCore(ParticleCore):
         free_index = np.flatnonzero(free.ravel())
         ratio = cfg.grid_cell_size / lmap.resolution
         lattice_table = None
-        if data["_log_table"] is not None:
-            lattice_table = padded_table(data["_log_table"],
+        if data.log_table is not None:
+            lattice_table = padded_table(data.log_table,
                                          off_map_log_probability(build_lidar(cfg)))
         centres = poses[:, :, 0, :2].reshape(-1, 2)
         x_min, y_min, x_max, y_max = lmap.bounds
@@ -97,75 +146,105 @@ class GridCore(ParticleCore):
                      cells - 1)
         iy = np.clip(((centres[:, 1] - y_min) / (y_max - y_min) * cells).astype(np.int64), 0,
                      cells - 1)
-        data.update(
-            _template=template,
-            _free_index=free_index,
-            _poses=np.ascontiguousarray(poses.reshape(nx * ny, nh, 3)[free_index].reshape(-1, 3)),
-            _map_resolution=lmap.resolution,
-            _lattice=((np.arange(nx) + 0.5) * ratio, (np.arange(ny) + 0.5) * ratio,
-                      2.0 * np.pi * np.arange(nh) / nh),
-            _lattice_table=lattice_table,
-            _hist_bins=iy * cells + ix,
+        return GridMapData(
+            **vars(data),
+            template=template,
+            free_index=free_index,
+            poses=np.ascontiguousarray(poses.reshape(nx * ny, nh, 3)[free_index].reshape(-1, 3)),
+            lattice=((np.arange(nx) + 0.5) * ratio, (np.arange(ny) + 0.5) * ratio,
+                     2.0 * np.pi * np.arange(nh) / nh),
+            lattice_table=lattice_table,
+            hist_bins=iy * cells + ix,
+            map_resolution=lmap.resolution,
         )
-        return data
 
-    def _bind_map(self, lmap: LandmarkMap | OccupancyGrid, data: dict) -> None:
-        """The shared per-map arrays, and this core's own likelihood buffer."""
-        super()._bind_map(lmap, data)
-        assert self._template is not None
-        self._log_lik = np.full(self._template.shape[1:], -np.inf)
+    def _bind_map(self, b: int, episode: Episode) -> None:
+        """Member ``b``'s likelihood buffer is cleared for its new map (the beam model writes
+        only the free cells); the batch's belief is made with the first map's grid."""
+        super()._bind_map(b, episode)
+        template = self._data(b).template
+        assert template is not None
+        if self.grid_belief is None:
+            free = np.repeat(template.free, self.batch_size, axis=0)
+            self.grid_belief = GridBelief(free, template.n_headings, template.cell_size,
+                                          template.origin)
+            self._log_lik = np.full(self.grid_belief.shape, -np.inf)
+        assert self._log_lik is not None
+        self._log_lik[b] = -np.inf
 
-    def _init_belief(self, rng: np.random.Generator) -> None:
-        """Uniform over the free cell poses, or a Gaussian around the true start plus
-        ``initial_error_std`` noise evaluated at them."""
-        assert self._template is not None
-        self.belief = self._template.copy()
+    def _init_belief(self, b: int, rng: np.random.Generator) -> None:
+        """Member ``b`` uniform over its free cell poses, or a Gaussian around the true start
+        plus ``initial_error_std`` noise evaluated at them."""
+        template = self._data(b).template
+        assert template is not None and self.grid_belief is not None
+        member = template.copy()
         if self.config.initial_belief != "uniform":
-            mean, cov = self._initial_gaussian(rng)
-            self.belief.initialize_gaussian(mean, cov)
+            mean, cov = self._initial_gaussian(b, rng)
+            member.initialize_gaussian(mean, cov)
+        self.grid_belief.set_member(b, member)
 
     # -- Algorithm 1 ---------------------------------------------------------------------------
 
-    def _filter_step(self, v: float, omega: float, rng: np.random.Generator) -> None:
-        """Predict with the control, take the scan from the true pose, correct every free cell
-        pose with its tempered lidar likelihood."""
-        belief = self.belief
-        assert belief is not None and self._log_lik is not None and self._poses is not None
-        belief.predict_unicycle(v, omega, self.config.dt, self._noise_std)
-        ranges = self._scan(rng)
-        log_lik = self._log_lik  # (X, Y, H), -inf on occupied cells
-        if self._lattice_table is not None and self.config.lidar_beam_skip is None:
-            assert self.lidar is not None
-            cols, rows, headings = self._lattice
-            lattice_field_log_likelihood(
-                self.lidar, ranges, headings, cols, rows, belief.free[0], self._map_resolution,
-                self._lattice_table, out=log_lik,
-            )
-        else:  # beam model, or beam skipping: the particle filter's scoring, pose by pose
-            flat = log_lik.reshape(-1, belief.n_headings)
-            flat[self._free_index] = self._scan_log_likelihood(ranges, self._poses).reshape(
-                -1, belief.n_headings
-            )
+    def _filter_step(
+        self, members: list[int], controls: NDArray[np.float64],
+        rngs: Sequence[np.random.Generator],
+    ) -> None:
+        """Predict every member with its control, take the stepped members' scans from their
+        true poses, correct every free cell pose with its tempered lidar likelihood."""
+        belief = self.grid_belief
+        log_lik = self._log_lik  # (B, X, Y, H), -inf on occupied cells
+        assert belief is not None and log_lik is not None
+        belief.predict_unicycle(controls[:, 0], controls[:, 1], self.config.dt, self._noise_std)
         exponent = self.config.likelihood_exponent
-        if exponent != 1.0:
-            log_lik *= exponent  # -inf stays -inf
+        for b in members:
+            ranges = self._scan(b, rngs[b])
+            data = self._data(b)
+            if data.lattice_table is not None and self.config.lidar_beam_skip is None:
+                assert self.lidar is not None
+                cols, rows, headings = data.lattice
+                lattice_field_log_likelihood(
+                    self.lidar, ranges, headings, cols, rows, belief.free[b],
+                    data.map_resolution, data.lattice_table, out=log_lik[b],
+                )
+            else:  # beam model, or beam skipping: the particle filter's scoring, pose by pose
+                assert data.poses is not None
+                flat = log_lik[b].reshape(-1, belief.n_headings)
+                flat[data.free_index] = self._scan_log_likelihood(
+                    b, ranges, data.poses).reshape(-1, belief.n_headings)
+            if exponent != 1.0:
+                log_lik[b] *= exponent  # -inf stays -inf
+        # the members not stepped are reset next: their likelihoods are stale, but finite
         belief.update_log(log_lik)
 
     # -- metrics and observation ---------------------------------------------------------------
 
-    def _belief_summary(self) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float]:
-        """Mean, covariance (cells' own spread included), entropy and its log det."""
-        belief = self.belief
-        assert belief is not None
-        mean, cov = belief.moments()
-        sign, logdet = np.linalg.slogdet(cov[0])
-        entropy = float(belief.entropy()[0])
-        return mean[0], cov[0], entropy, float(logdet) if sign > 0 else -np.inf
+    def _reset_summary(self, b: int) -> BeliefSummary:
+        """The summary of member ``b``'s new belief, from a one-member copy (the kernels then
+        read one member, not the batch)."""
+        member = self.member_belief(b)
+        assert member is not None
+        return self._summaries(member, [0], b)[0]
 
-    def _mass_histogram(self, bounds: NDArray) -> NDArray[np.float64]:
-        """``(64,)`` the belief's x-y marginal pooled to the ``8 x 8`` grid over the map."""
-        belief = self.belief
-        assert belief is not None and self._hist_bins is not None
+    def _step_summaries(self, members: list[int]) -> list[BeliefSummary]:
+        """The stepped members' summaries, from one call of each kernel over the batch."""
+        assert self.grid_belief is not None
+        return self._summaries(self.grid_belief, members, None)
+
+    def _summaries(self, belief: GridBelief, members: list[int], b: int | None
+                   ) -> list[BeliefSummary]:
+        """Summaries of ``belief``'s ``members`` (of core member ``b`` when the belief is a
+        one-member copy, else the core's members themselves): mean, covariance (cells' own
+        spread included), entropy, its log det, the ``8 x 8`` histogram of the x-y marginal."""
+        mean, cov = belief.moments()
+        entropy = belief.entropy()
+        marginal = belief.marginal_xy()
         cells = HISTOGRAM_CELLS
-        return np.bincount(self._hist_bins, weights=belief.marginal_xy()[0].ravel(),
-                           minlength=cells * cells)
+        out = []
+        for m in members:
+            sign, logdet = np.linalg.slogdet(cov[m])
+            bins = self._data(m if b is None else b).hist_bins
+            assert bins is not None
+            hist = np.bincount(bins, weights=marginal[m].ravel(), minlength=cells * cells)
+            out.append(BeliefSummary(mean[m], cov[m], float(entropy[m]),
+                                     float(logdet) if sign > 0 else -np.inf, hist))
+        return out

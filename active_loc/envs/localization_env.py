@@ -305,10 +305,11 @@ def build_frame(
     particles = weights = belief_map = None
     if isinstance(core, GridCore):
         assert core.belief is not None
-        belief_map = core.belief.marginal_xy()[0]
+        belief_map = core.belief.prob[b].sum(axis=2)
     elif isinstance(core, ParticleCore):
-        assert core.belief is not None
-        particles, weights = core.belief.particles.copy(), core.belief.weights.copy()
+        belief = core.member_belief(b)
+        assert belief is not None
+        particles, weights = belief.particles.copy(), belief.weights.copy()
     common = {
         "true_pose": core.pose[b].copy(),
         "mean": core.belief_mean[b].copy(),
@@ -323,10 +324,11 @@ def build_frame(
     }
     if isinstance(lmap, OccupancyGrid):
         assert isinstance(core, ParticleCore) and core.lidar is not None
+        crowd = core.episode(b).crowd
         return GridFrame(
             grid=lmap, beam_angles=core.lidar.beam_angles, ranges=core.ranges[b].copy(),
             max_range=core.lidar.max_range, kidnapped=outcome.kidnapped,
-            people=None if core.crowd is None else core.crowd.discs.copy(),
+            people=None if crowd is None else crowd.discs.copy(),
             belief_map=belief_map,
             belief_cell_size=core.config.grid_cell_size if belief_map is not None else 0.0,
             **common,

@@ -1,4 +1,4 @@
-"""The simulator of one localization episode with a Monte Carlo (particle) belief.
+"""The simulator of B localization episodes with a Monte Carlo (particle) belief each.
 
 The same step order as :mod:`active_loc.envs.landmark_core`, for ``belief="mcl"``:
 
@@ -8,8 +8,9 @@ The same step order as :mod:`active_loc.envs.landmark_core`, for ``belief="mcl"`
 
 on a landmark map (landmark sensors, known or identical-looking landmarks) or an occupancy
 grid (lidar). A step costs hundreds of microseconds in the particle kernels, so this holder is
-plain Python around them, one episode (B = 1). It writes its results into the same ``state``
-row layout as the landmark core, so the env reads both the same way.
+plain Python around them: the members' filters run one after another (a single env is B = 1).
+It writes its results into the same ``state`` row layout as the landmark core, so the envs
+read both the same way.
 
 Observation (float32, in [-1, 1]): the belief header of :mod:`active_loc.envs.observations`,
 then an ``8 x 8`` histogram of the particle mass over the map (a picture of a multi-modal
@@ -20,7 +21,9 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -56,6 +59,7 @@ from active_loc.maps import LandmarkMap, OccupancyGrid, random_landmark_map
 from active_loc.maps.generators import GENERATORS
 from active_loc.maps.pool import pool_map_rng, shared_pool
 from active_loc.motion import move_on_grid, move_within_bounds
+from active_loc.parallel import thread_count
 from active_loc.sensors.lidar import LidarSensor
 from active_loc.sensors.range_table import RangeTable
 
@@ -88,32 +92,74 @@ def draw_map(cfg: LocalizationConfig, rng: np.random.Generator) -> LandmarkMap |
     return random_landmark_map(rng, cfg.map_size, cfg.n_landmarks)
 
 
-def _pool_entry(
-    core: type[ParticleCore], cfg: LocalizationConfig, index: int
-) -> tuple[LandmarkMap | OccupancyGrid, dict]:
+def _pool_entry(core: type[ParticleCore], cfg: LocalizationConfig,
+                index: int) -> tuple[LandmarkMap | OccupancyGrid, MapData]:
     """Map ``index`` of a pool and its derived arrays."""
     lmap = draw_map(cfg, pool_map_rng(index))
     return lmap, core.derive_map_data(cfg, lmap)
 
 
-class ParticleCore(StateViews):
-    """One episode with an MCL belief, on a landmark map or an occupancy grid.
+@dataclass(frozen=True, eq=False)
+class MapData:
+    """What a particle core derives from one map, built once per map and read-only after,
+    so that the episodes and sub-envs that draw a pool's map share it.
 
-    Offers what :class:`active_loc.envs.localization_env.ActiveLocalizationEnv` uses of a core:
-    ``state`` ``(1, STATE_SIZE)``, ``obs`` ``(1, D)``, ``actions`` ``(1, 2)``,
-    ``reset_member(0, rng)``, ``step(rngs)``, ``belief``, ``maps``, ``models``.
+    Attributes:
+        free: the filter's free space (uniform draws, the free-space test).
+        grid_arrays: the ray-casting arrays of an occupancy grid (None on landmark maps).
+        distance: the grid's distance field (m).
+        log_table: the likelihood field's per-cell log-probabilities (likelihood field model).
+        range_table: the beam model's precomputed casts (``lidar_range_bins > 0``).
+        dual: mixture MCL's scan lattice (``proposal="mixture"`` on grids).
     """
 
-    batch_size = 1
+    free: FreeSpace
+    grid_arrays: tuple | None = None
+    distance: NDArray[np.float64] | None = None
+    log_table: NDArray[np.float64] | None = None
+    range_table: RangeTable | None = None
+    dual: LidarDualProposal | None = None
+
+
+@dataclass(eq=False)
+class Episode:
+    """One member's episode, beside its ``state`` row: its map and what is derived from it,
+    whether the map blocks motion, the people, the step count and the kidnapping."""
+
+    map: LandmarkMap | OccupancyGrid
+    data: MapData
+    walls: bool  # grids block motion by their cells; a landmark map by its border if walled
+    crowd: Crowd | None = None
+    t: int = 0
+    kidnap_step: int = -1  # the step the robot is kidnapped at (-1: never)
+    kidnapped: bool = False  # the kidnapping has happened
+
+
+class ParticleCore(StateViews):
+    """B episodes with an MCL belief each, on landmark maps or occupancy grids.
+
+    Offers the simulator interface of :class:`~active_loc.envs.landmark_core.LandmarkCore`:
+    ``state`` ``(B, STATE_SIZE)``, ``obs`` ``(B, D)``, ``actions`` ``(B, 2)``,
+    ``reset_member(b, rng)``, ``step(rngs, active)``, ``maps``, ``models``; per member its
+    :attr:`episodes` entry and belief (:meth:`member_belief`). The members' filters run one
+    after another (each on both cores when it is large); :class:`~active_loc.envs.grid_core.
+    GridCore` steps its members' grid beliefs together.
+
+    Args:
+        config: the task.
+        batch_size: B.
+    """
+
     #: the ``belief`` config value this core runs
     belief_name = "mcl"
 
-    def __init__(self, config: LocalizationConfig) -> None:
+    def __init__(self, config: LocalizationConfig, batch_size: int = 1) -> None:
         if config.belief != self.belief_name:
             raise ValueError(
                 f"{type(self).__name__} runs belief={self.belief_name!r}, got {config.belief!r}"
             )
         self.config = config
+        self.batch_size = int(batch_size)
         self.grid_mode = config.uses_grid
         if self.grid_mode:
             self.lidar: LidarSensor | None = build_lidar(config)
@@ -132,45 +178,71 @@ class ParticleCore(StateViews):
         self.fixed_map = self._fixed_map()
         if self.fixed_map is not None and config.start == "fixed":
             check_start_pose(self.fixed_map, config.start_pose[:2])
-        self._fixed_data: dict | None = None  # derive_map_data of the fixed map
-        self.maps: list[LandmarkMap | OccupancyGrid | None] = [None]
-        self.state = np.zeros((1, STATE_SIZE))
-        self.obs = np.zeros((1, particle_observation_size(config)), dtype=np.float32)
-        self.actions = np.zeros((1, 2))
-        n = config.max_landmarks
-        self.z = np.zeros((1, n, 2))
-        self.visible = np.zeros((1, n), dtype=np.bool_)
-        self.ranges = np.zeros((1, config.n_beams))
-        self.landmarks = np.zeros((1, n, 2))
-        self.belief: MCLBelief | None = None
-        self._free: FreeSpace | None = None
-        self._grid_arrays: tuple | None = None
-        self._distance: NDArray[np.float64] | None = None
-        self._log_table: NDArray[np.float64] | None = None  # likelihood field, per cell
-        self._range_table: RangeTable | None = None  # beam model, precomputed casts
-        self._dual: LidarDualProposal | None = None  # mixture MCL's scan lattice
-        self.crowd: Crowd | None = None  # people the map does not hold
-        self.t = 0
-        self.kidnap_step = -1
-        self.kidnapped = False  # the kidnapping of this episode has happened
-        self._walls = False  # the map's border blocks motion (landmark maps)
+        self._fixed_data: MapData | None = None  # derive_map_data of the fixed map
+        b, n = self.batch_size, config.max_landmarks
+        self.episodes: list[Episode | None] = [None] * b
+        self.state = np.zeros((b, STATE_SIZE))
+        self.obs = np.zeros((b, particle_observation_size(config)), dtype=np.float32)
+        self.actions = np.zeros((b, 2))
+        self.z = np.zeros((b, n, 2))
+        self.visible = np.zeros((b, n), dtype=np.bool_)
+        self.ranges = np.zeros((b, config.n_beams))
+        self.landmarks = np.zeros((b, n, 2))
+        self.beliefs: list[MCLBelief | None] = [None] * b
         self._bin_variance = np.diag(np.square(ENTROPY_BINS) / 12.0)
+
+    # -- members -------------------------------------------------------------------------------
+
+    @property
+    def maps(self) -> list[LandmarkMap | OccupancyGrid | None]:
+        """``(B,)`` each member's map (None before its first reset)."""
+        return [None if e is None else e.map for e in self.episodes]
+
+    def episode(self, b: int) -> Episode:
+        """Member ``b``'s episode (after its first reset)."""
+        episode = self.episodes[b]
+        if episode is None:
+            raise RuntimeError(f"member {b} has not been reset")
+        return episode
+
+    @property
+    def belief(self) -> MCLBelief | None:
+        """The first member's belief: the single env's."""
+        return self.beliefs[0]
+
+    def member_belief(self, b: int) -> MCLBelief | None:
+        """Member ``b``'s belief (the object the filter updates)."""
+        return self.beliefs[b]
+
+    @property
+    def scan_dual(self) -> LidarDualProposal | None:
+        """Mixture MCL's scan lattice of the first member's map (grid maps), else None."""
+        return None if self.episodes[0] is None else self.episode(0).data.dual
+
+    @property
+    def range_table(self) -> RangeTable | None:
+        """The beam model's precomputed casts for the first member's map
+        (``lidar_range_bins > 0`` with the beam model), else None."""
+        return None if self.episodes[0] is None else self.episode(0).data.range_table
 
     # -- reset ---------------------------------------------------------------------------------
 
     def reset_member(self, b: int, rng: np.random.Generator) -> None:
-        """New episode: map, true start, initial belief, kidnapping step; no scan yet."""
+        """New episode of member ``b``: map, true start, initial belief, kidnapping step; no
+        scan yet."""
         cfg = self.config
         lmap, data = self._episode_map(rng)
-        if lmap is not self.maps[0]:
-            self._bind_map(lmap, data)
-        self.maps[0] = lmap
-        self.state[0] = 0.0
-        row = self.rows[0]
-        row["bounds"] = lmap.bounds
+        previous = self.episodes[b]
         # grids block motion by their cells; a landmark map by its border when it has walls
-        self._walls = isinstance(lmap, OccupancyGrid) or lmap.walls
-        row["walls"] = self._walls
+        walls = isinstance(lmap, OccupancyGrid) or lmap.walls
+        episode = Episode(lmap, data, walls)
+        self.episodes[b] = episode
+        if previous is None or previous.map is not lmap:
+            self._bind_map(b, episode)
+        self.state[b] = 0.0
+        row = self.rows[b]
+        row["bounds"] = lmap.bounds
+        row["walls"] = walls
         if isinstance(lmap, LandmarkMap):
             row["n_landmarks"] = lmap.n_landmarks
         if cfg.start == "fixed":
@@ -178,52 +250,50 @@ class ParticleCore(StateViews):
                 check_start_pose(lmap, cfg.start_pose[:2])
             row["pose"] = cfg.start_pose
         else:
-            row["pose"] = self._random_free_pose(rng)
-        self.crowd = None
+            row["pose"] = self._random_free_pose(b, rng)
         people = cfg.dynamic_obstacles
         if people is not None and people[0] > 0:
             assert isinstance(lmap, OccupancyGrid)
-            self.crowd = Crowd.spawn(lmap, int(people[0]), float(people[1]), float(people[2]),
-                                     row["pose"][:2], rng)
-        self._init_belief(rng)
-        self.t = 0
-        self.kidnapped = False
-        self.kidnap_step = -1
+            episode.crowd = Crowd.spawn(lmap, int(people[0]), float(people[1]),
+                                        float(people[2]), row["pose"][:2], rng)
+        self._init_belief(b, rng)
         if cfg.kidnap:
             lo, hi = cfg.kidnap_window
             first, last = max(1, round(lo * cfg.horizon)), max(1, round(hi * cfg.horizon))
-            self.kidnap_step = int(rng.integers(first, last + 1))
-        self.z[:] = 0.0
-        self.visible[:] = False
-        self.ranges[:] = 0.0
-        self._finish(collided=False, kidnapped_now=False, first=True)
+            episode.kidnap_step = int(rng.integers(first, last + 1))
+        self.z[b] = 0.0
+        self.visible[b] = False
+        self.ranges[b] = 0.0
+        self._finish(b, *self._reset_summary(b), collided=False, kidnapped_now=False,
+                     first=True)
 
-    def _init_belief(self, rng: np.random.Generator) -> None:
-        """The episode's initial belief: uniform, or Gaussian around the true start plus
+    def _init_belief(self, b: int, rng: np.random.Generator) -> None:
+        """Member ``b``'s initial belief: uniform, or Gaussian around the true start plus
         ``initial_error_std`` noise."""
         cfg = self.config
-        assert self._free is not None
-        self.belief = MCLBelief(
-            self._free, self.models.motion, cfg.n_particles, resampling=cfg.resampling,
-            resample_threshold=cfg.resample_threshold, augmented=cfg.augmented,
-            alpha_slow=cfg.recovery_alpha_slow, alpha_fast=cfg.recovery_alpha_fast, kld=cfg.kld,
+        belief = MCLBelief(
+            self.episode(b).data.free, self.models.motion, cfg.n_particles,
+            resampling=cfg.resampling, resample_threshold=cfg.resample_threshold,
+            augmented=cfg.augmented, alpha_slow=cfg.recovery_alpha_slow,
+            alpha_fast=cfg.recovery_alpha_fast, kld=cfg.kld,
             min_particles=min(cfg.min_particles, cfg.n_particles),
             likelihood_exponent=cfg.likelihood_exponent, proposal=cfg.proposal,
             mixture_share=cfg.mixture_share,
         )
         if cfg.initial_belief == "uniform":
-            self.belief.initialize_uniform(rng)
+            belief.initialize_uniform(rng)
         else:
-            mean, cov = self._initial_gaussian(rng)
-            self.belief.initialize_gaussian(mean, cov, rng)
+            mean, cov = self._initial_gaussian(b, rng)
+            belief.initialize_gaussian(mean, cov, rng)
+        self.beliefs[b] = belief
 
     def _initial_gaussian(
-        self, rng: np.random.Generator
+        self, b: int, rng: np.random.Generator
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Mean ``(3,)`` (the true start plus ``initial_error_std`` noise) and covariance
-        ``(3, 3)`` of a Gaussian initial belief."""
+        """Mean ``(3,)`` (member ``b``'s true start plus ``initial_error_std`` noise) and
+        covariance ``(3, 3)`` of a Gaussian initial belief."""
         cfg = self.config
-        mean = self.pose[0] + rng.standard_normal(3) * cfg.initial_error_std
+        mean = self.pose[b] + rng.standard_normal(3) * cfg.initial_error_std
         mean[2] = wrap_angle(mean[2])
         return mean, np.diag(np.square(cfg.initial_belief_std))
 
@@ -244,7 +314,8 @@ class ParticleCore(StateViews):
         check_memory(memory_parts(cfg, grid.values.size, grid.resolution))
         return grid
 
-    def _episode_map(self, rng: np.random.Generator) -> tuple[LandmarkMap | OccupancyGrid, dict]:
+    def _episode_map(self, rng: np.random.Generator) -> tuple[LandmarkMap | OccupancyGrid,
+                                                               MapData]:
         """The map of a new episode and what the core derives from it: the fixed map, one of
         the pool's (``map_pool``), or a new one drawn with ``rng``."""
         cfg = self.config
@@ -259,12 +330,12 @@ class ParticleCore(StateViews):
         return lmap, self.derive_map_data(cfg, lmap)
 
     @classmethod
-    def derive_map_data(cls, cfg: LocalizationConfig, lmap: LandmarkMap | OccupancyGrid) -> dict:
-        """What the core derives from a map, by attribute name: the filter's free space and,
+    def derive_map_data(cls, cfg: LocalizationConfig, lmap: LandmarkMap | OccupancyGrid
+                        ) -> MapData:
+        """What the core derives from a map (:class:`MapData`): the filter's free space and,
         on grids, the ray-casting arrays, the distance field and the lidar model's table
         (likelihood field) or precomputed casts (beam model with ``lidar_range_bins``), and
-        for mixture MCL the scan lattice of its dual proposal. Read-only once built, so that
-        the episodes and sub-envs drawing a pool's map share it."""
+        for mixture MCL the scan lattice of its dual proposal."""
         if isinstance(lmap, OccupancyGrid):
             lidar = build_lidar(cfg)
             grid_arrays = lmap.kernel_arrays()
@@ -278,44 +349,29 @@ class ParticleCore(StateViews):
             if cfg.proposal == "mixture":
                 field = log_table if log_table is not None else lidar.log_table(distance)
                 dual = LidarDualProposal.build(lmap, lidar, field)
-            return {
-                "_free": FreeSpace.from_grid(lmap.values, lmap.resolution, lmap.origin),
-                "_grid_arrays": grid_arrays, "_distance": distance, "_log_table": log_table,
-                "_range_table": range_table, "_dual": dual,
-            }
+            return MapData(FreeSpace.from_grid(lmap.values, lmap.resolution, lmap.origin),
+                           grid_arrays, distance, log_table, range_table, dual)
         if lmap.n_landmarks > cfg.max_landmarks:
             raise ValueError(
                 f"the map has {lmap.n_landmarks} landmarks but max_landmarks="
                 f"{cfg.max_landmarks}; raise max_landmarks"
             )
-        return {"_free": FreeSpace.from_box(*lmap.bounds), "_dual": None}
+        return MapData(FreeSpace.from_box(*lmap.bounds))
 
-    def _bind_map(self, lmap: LandmarkMap | OccupancyGrid, data: dict) -> None:
-        """Use the per-map arrays ``data`` (:meth:`derive_map_data`) of ``lmap``."""
-        for name, value in data.items():
-            setattr(self, name, value)
+    def _bind_map(self, b: int, episode: Episode) -> None:
+        """Member ``b`` has a new map: its per-member copies of the map's arrays."""
+        lmap = episode.map
         if isinstance(lmap, LandmarkMap):
-            self.landmarks[:] = 0.0
-            self.landmarks[0, : lmap.n_landmarks] = lmap.positions
+            self.landmarks[b] = 0.0
+            self.landmarks[b, : lmap.n_landmarks] = lmap.positions
 
-    @property
-    def scan_dual(self) -> LidarDualProposal | None:
-        """Mixture MCL's scan lattice for the current map (grid maps), else None."""
-        return self._dual
-
-    @property
-    def range_table(self) -> RangeTable | None:
-        """The beam model's precomputed casts for the current map (``lidar_range_bins > 0``
-        with the beam model), else None."""
-        return self._range_table
-
-    def _random_free_pose(self, rng: np.random.Generator) -> NDArray[np.float64]:
-        """A uniform free pose; on landmark maps 1 m (at most a quarter) away from the border."""
-        lmap = self.maps[0]
+    def _random_free_pose(self, b: int, rng: np.random.Generator) -> NDArray[np.float64]:
+        """A uniform free pose in member ``b``'s map; on landmark maps 1 m (at most a
+        quarter) away from the border."""
+        lmap = self.episode(b).map
         if isinstance(lmap, OccupancyGrid):
             xy = lmap.sample_free(rng, 1)[0]
             return np.array([xy[0], xy[1], rng.uniform(-np.pi, np.pi)])
-        assert lmap is not None
         x_min, y_min, x_max, y_max = lmap.bounds
         margin = min(1.0, 0.25 * (x_max - x_min), 0.25 * (y_max - y_min))
         u = rng.random(3)
@@ -327,100 +383,168 @@ class ParticleCore(StateViews):
 
     # -- step ----------------------------------------------------------------------------------
 
-    def step(self, rngs: Sequence[np.random.Generator]) -> int:
-        """Advance the episode with the action in :attr:`actions`; -1, or 0 if not finite."""
-        action = self.actions[0]
-        if not np.all(np.isfinite(action)):
-            return 0
-        rng = rngs[0]
-        limits = self.models.limits
-        if limits.action_type == "continuous":
-            v, omega = limits.decode(action)
-        else:
-            v, omega = float(action[0]), float(action[1])
-        self.t += 1
-        kidnapped_now = self.t == self.kidnap_step
-        if kidnapped_now:
-            self.pose[0] = self._random_free_pose(rng)
-            self.kidnapped = True
-        collided = self._move_truth(v, omega, rng)
-        if self.crowd is not None:
-            assert isinstance(self.maps[0], OccupancyGrid)
-            self.crowd.step(self.maps[0], self.config.dt, self.pose[0, :2], rng)
-        # a blocked robot did not move: the filter predicts with V = 0
-        self._filter_step(0.0 if collided else v, omega, rng)
-        self._finish(collided, kidnapped_now, first=False)
+    def step(
+        self,
+        rngs: Sequence[np.random.Generator],
+        active: NDArray[np.bool_] | None = None,
+        threads: int | None = None,
+    ) -> int:
+        """Advance the members with the actions in :attr:`actions` ``(B, 2)``.
+
+        Args:
+            rngs: the Generator of each member.
+            active: ``(B,)`` which members to advance; None: all. (The others are about to
+                be reset: their beliefs may be stepped too, never their Generators.)
+            threads: numba threads for the kernels (1: their serial twins); None: this
+                thread's setting. The result does not depend on it.
+
+        Returns:
+            -1, or the index of a member whose action is not finite (nothing advanced then).
+        """
+        members = list(range(self.batch_size)) if active is None else (
+            np.flatnonzero(active).tolist())
+        for b in members:
+            if not np.all(np.isfinite(self.actions[b])):
+                return b
+        with thread_count(threads):
+            limits = self.models.limits
+            controls = np.zeros((self.batch_size, 2))  # what each filter predicts with
+            collided = np.zeros(self.batch_size, dtype=np.bool_)
+            kidnapped_now = np.zeros(self.batch_size, dtype=np.bool_)
+            for b in members:
+                action = self.actions[b]
+                if limits.action_type == "continuous":
+                    v, omega = limits.decode(action)
+                else:
+                    v, omega = float(action[0]), float(action[1])
+                kidnapped_now[b], collided[b] = self._advance_truth(b, v, omega, rngs[b])
+                # a blocked robot did not move: the filter predicts with V = 0
+                controls[b] = (0.0 if collided[b] else v, omega)
+            self._filter_step(members, controls, rngs)
+            for b, summary in zip(members, self._step_summaries(members), strict=True):
+                self._finish(b, *summary, collided=bool(collided[b]),
+                             kidnapped_now=bool(kidnapped_now[b]), first=False)
         return -1
 
-    def _filter_step(self, v: float, omega: float, rng: np.random.Generator) -> None:
-        """Predict with the control, take the scan from the true pose and correct."""
-        belief = self.belief
-        assert belief is not None
-        belief.predict(np.array([v, omega]), rng)
-        pose = self.pose[0]
-        lmap = self.maps[0]
-        if isinstance(lmap, OccupancyGrid):
-            ranges = self._scan(rng)
-            update_with_scan(belief, ranges,
-                             functools.partial(self._scan_log_likelihood, ranges), self._dual,
-                             rng)
-        else:
-            assert lmap is not None
-            sensor = self.models.sensor
-            z, visible = sensor.measure(pose, lmap.positions, rng)
-            n = lmap.n_landmarks
-            self.z[0, :n] = z
-            self.visible[0, :n] = visible
-            belief.update_landmarks(
-                z, visible, lmap.positions, sensor, rng,
-                known_correspondence=self.config.known_correspondences,
-            )
+    def _advance_truth(
+        self, b: int, v: float, omega: float, rng: np.random.Generator
+    ) -> tuple[bool, bool]:
+        """Member ``b``'s world for one step: the kidnapping (if now), the true robot's noisy
+        motion and the people's; ``(kidnapped now, walls blocked the translation)``."""
+        episode = self.episode(b)
+        episode.t += 1
+        kidnapped_now = episode.t == episode.kidnap_step
+        if kidnapped_now:
+            self.pose[b] = self._random_free_pose(b, rng)
+            episode.kidnapped = True
+        collided = self._move_truth(b, v, omega, rng)
+        if episode.crowd is not None:
+            assert isinstance(episode.map, OccupancyGrid)
+            episode.crowd.step(episode.map, self.config.dt, self.pose[b, :2], rng)
+        return kidnapped_now, collided
 
-    def _scan(self, rng: np.random.Generator) -> NDArray[np.float64]:
-        """The lidar scan ``(M,)`` (m) from the true pose (people occlude), kept in
+    def _filter_step(
+        self, members: list[int], controls: NDArray[np.float64],
+        rngs: Sequence[np.random.Generator],
+    ) -> None:
+        """Each member's MCL step: predict with its control ``controls[b]`` ``(V, omega)``,
+        take the scan from the true pose and correct."""
+        for b in members:
+            belief = self.beliefs[b]
+            assert belief is not None
+            rng = rngs[b]
+            belief.predict(controls[b], rng)
+            episode = self.episode(b)
+            lmap = episode.map
+            if isinstance(lmap, OccupancyGrid):
+                ranges = self._scan(b, rng)
+                update_with_scan(belief, ranges,
+                                 functools.partial(self._scan_log_likelihood, b, ranges),
+                                 episode.data.dual, rng)
+            else:
+                sensor = self.models.sensor
+                z, visible = sensor.measure(self.pose[b], lmap.positions, rng)
+                n = lmap.n_landmarks
+                self.z[b, :n] = z
+                self.visible[b, :n] = visible
+                belief.update_landmarks(
+                    z, visible, lmap.positions, sensor, rng,
+                    known_correspondence=self.config.known_correspondences,
+                )
+
+    def _scan(self, b: int, rng: np.random.Generator) -> NDArray[np.float64]:
+        """Member ``b``'s lidar scan ``(M,)`` (m) from its true pose (people occlude), kept in
         :attr:`ranges`."""
         assert self.true_lidar is not None
-        pose = self.pose[0]
-        discs = self.crowd.discs if self.crowd is not None else None
-        ranges = self.true_lidar.measure(pose, self._grid_arrays, rng, discs)
-        self.ranges[0] = ranges
+        episode = self.episode(b)
+        discs = episode.crowd.discs if episode.crowd is not None else None
+        ranges = self.true_lidar.measure(self.pose[b], episode.data.grid_arrays, rng, discs)
+        self.ranges[b] = ranges
         return ranges
 
     def _scan_log_likelihood(
-        self, ranges: NDArray[np.float64], poses: NDArray[np.float64]
+        self, b: int, ranges: NDArray[np.float64], poses: NDArray[np.float64]
     ) -> NDArray[np.float64]:
-        """The filter's lidar log-likelihood ``(K,)`` of a scan at poses ``(K, 3)``: the
-        likelihood field from its per-cell table, the beam model from the range table, or the
-        beam model ray-casting every pose."""
+        """The filter's lidar log-likelihood ``(K,)`` of a scan at poses ``(K, 3)`` in member
+        ``b``'s map: the likelihood field from its per-cell table, the beam model from the
+        range table, or the beam model ray-casting every pose."""
         assert self.lidar is not None
-        if self._log_table is not None:
+        data = self.episode(b).data
+        if data.log_table is not None:
             return self.lidar.field_log_likelihood(
-                ranges, poses, self._grid_arrays, self._log_table,
-                beam_skip=self.config.lidar_beam_skip, distance_field=self._distance,
+                ranges, poses, data.grid_arrays, data.log_table,
+                beam_skip=self.config.lidar_beam_skip, distance_field=data.distance,
             )
-        if self._range_table is not None:
-            return self._range_table.log_likelihood(ranges, poses)
-        return self.lidar.log_likelihood(ranges, poses, self._grid_arrays)
+        if data.range_table is not None:
+            return data.range_table.log_likelihood(ranges, poses)
+        return self.lidar.log_likelihood(ranges, poses, data.grid_arrays)
 
-    def _move_truth(self, v: float, omega: float, rng: np.random.Generator) -> bool:
-        """Move the true robot with noise; returns whether walls blocked the translation."""
-        pose = self.pose[0]
+    def _move_truth(self, b: int, v: float, omega: float, rng: np.random.Generator) -> bool:
+        """Move member ``b``'s true robot with noise; returns whether walls blocked the
+        translation."""
+        pose = self.pose[b]
         noise = self.models.motion.noise_root @ rng.standard_normal(3)
-        lmap = self.maps[0]
+        episode = self.episode(b)
+        lmap = episode.map
         if not isinstance(lmap, OccupancyGrid):
-            box = self.rows[0]["bounds"]
+            box = self.rows[b]["bounds"]
             return bool(move_within_bounds(pose, v, omega, self.config.dt, noise, box,
-                                           self._walls))
-        crowd = self.crowd
+                                           episode.walls))
+        crowd = episode.crowd
         return move_on_grid(pose, v, omega, self.config.dt, noise, lmap,
                             crowd.blocks if crowd is not None else None)
 
     # -- metrics and observation ---------------------------------------------------------------
 
-    def _finish(self, collided: bool, kidnapped_now: bool, first: bool) -> None:
+    def _reset_summary(self, b: int) -> BeliefSummary:
+        """Member ``b``'s belief summary after its reset."""
+        return self._member_summary(b)
+
+    def _step_summaries(self, members: list[int]) -> list[BeliefSummary]:
+        """The belief summaries of the stepped members, in order."""
+        return [self._member_summary(b) for b in members]
+
+    def _member_summary(self, b: int) -> BeliefSummary:
+        """Member ``b``'s particle set summarized: mean ``(3,)``, covariance ``(3, 3)``,
+        entropy (nats), log det and the ``(64,)`` mass histogram over its map."""
+        belief = self.beliefs[b]
+        assert belief is not None
+        summary = belief.summary()
+        # a particle set stands for a density at the resolution of the entropy bins, so its log
+        # det adds a bin's own variance (d^2 / 12): finite even when every particle coincides
+        sign, logdet = np.linalg.slogdet(summary.cov + self._bin_variance)
+        hist = mass_histogram(belief.particles[:, :2], summary.weights, self.rows[b]["bounds"])
+        return BeliefSummary(summary.mean, summary.cov, summary.entropy,
+                             float(logdet) if sign > 0 else -np.inf, hist)
+
+    def _finish(
+        self, b: int, mean: NDArray, cov: NDArray, entropy: float, logdet: float,
+        hist: NDArray, collided: bool, kidnapped_now: bool, first: bool,
+    ) -> None:
+        """Member ``b``'s metrics row and observation from its belief summary."""
         cfg = self.config
-        row = self.rows[0]
-        mean, cov, entropy, logdet = self._belief_summary()
+        episode = self.episode(b)
+        row = self.rows[b]
         row["mean"] = mean
         row["cov"] = cov
         trace = float(np.trace(cov))
@@ -436,7 +560,7 @@ class ParticleCore(StateViews):
         head_err = float(abs(wrap_angle(pose[2] - mean[2])))
         # with a kidnapping ahead, or just behind, localizing now is not yet the end of the task
         unresolved = cfg.kidnap and (
-            not self.kidnapped or self.t < self.kidnap_step + cfg.kidnap_grace
+            not episode.kidnapped or episode.t < episode.kidnap_step + cfg.kidnap_grace
         )
         pos_std, head_std, localized, success, terminal = belief_metrics(
             cov, pos_err, head_err, unresolved, cfg.localized_position_std,
@@ -452,47 +576,40 @@ class ParticleCore(StateViews):
         row["terminal"] = terminal
         row["outcome"] = 0.0 if first else outcome_term(terminal, success, cfg.outcome_reward)
         row["kidnapped"] = kidnapped_now
-        row["n_visible"] = float(self.visible[0].sum()) if not self.grid_mode else 0.0
-        self._write_observation(mean, cov, entropy)
+        row["n_visible"] = float(self.visible[b].sum()) if not self.grid_mode else 0.0
+        self._write_observation(b, mean, cov, entropy, hist)
 
-    def _belief_summary(self) -> tuple[NDArray[np.float64], NDArray[np.float64], float, float]:
-        """The belief's mean ``(3,)``, covariance ``(3, 3)``, entropy (nats) and log det."""
-        belief = self.belief
-        assert belief is not None
-        summary = belief.summary()
-        # a particle set stands for a density at the resolution of the entropy bins, so its log
-        # det adds a bin's own variance (d^2 / 12): finite even when every particle coincides
-        sign, logdet = np.linalg.slogdet(summary.cov + self._bin_variance)
-        return (summary.mean, summary.cov, summary.entropy,
-                float(logdet) if sign > 0 else -np.inf)
-
-    def _write_observation(self, mean: NDArray, cov: NDArray, entropy: float) -> None:
-        out = self.obs[0]
-        bounds = self.rows[0]["bounds"]
+    def _write_observation(
+        self, b: int, mean: NDArray, cov: NDArray, entropy: float, hist: NDArray
+    ) -> None:
+        out = self.obs[b]
+        bounds = self.rows[b]["bounds"]
         write_belief_header(mean, cov, entropy, bounds, out)
         # where the belief's mass is, on a coarse grid over the map
         cells = HISTOGRAM_CELLS
-        hist = self._mass_histogram(bounds)
         start = BELIEF_HEADER
         out[start : start + cells * cells] = np.clip(hist, 0.0, 1.0)
         start += cells * cells
         if self.grid_mode:
             assert self.lidar is not None
-            out[start:] = np.clip(self.ranges[0] / self.lidar.max_range, 0.0, 1.0)
+            out[start:] = np.clip(self.ranges[b] / self.lidar.max_range, 0.0, 1.0)
         else:
-            lmap = self.maps[0]
+            lmap = self.episode(b).map
             assert isinstance(lmap, LandmarkMap)
             write_landmark_slots(
-                mean, self.z[0], self.visible[0], self.landmarks[0], lmap.n_landmarks,
+                mean, self.z[b], self.visible[b], self.landmarks[b], lmap.n_landmarks,
                 self.models.sensor.kind, self.models.scale, out[start:],
             )
 
-    def _mass_histogram(self, bounds: NDArray) -> NDArray[np.float64]:
-        """``(64,)`` the belief's mass in each cell of an ``8 x 8`` grid over the map box
-        ``bounds`` ``(4,)``, row-major from the bottom-left (index ``iy * 8 + ix``)."""
-        belief = self.belief
-        assert belief is not None
-        return mass_histogram(belief.particles[:, :2], belief.summary().weights, bounds)
+
+class BeliefSummary(NamedTuple):
+    """What a step's metrics and observation read of a member's belief."""
+
+    mean: NDArray[np.float64]  # (3,) m, m, rad
+    cov: NDArray[np.float64]  # (3, 3)
+    entropy: float  # nats
+    logdet: float  # log det of the covariance (the bins' own spread included)
+    hist: NDArray[np.float64]  # (64,) mass in each cell of the 8 x 8 grid over the map
 
 
 @numba.njit(cache=True, nogil=True)

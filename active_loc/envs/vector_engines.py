@@ -4,14 +4,15 @@ Three engines with one interface (``obs``, ``reset_member``, ``reset_members``, 
 ``infos``, ``info_dicts``, ``frame``, ``workers``, and per member ``np_random``,
 ``np_random_seed``, ``set_np_random``; ``set_specs``):
 
-* :class:`BatchedLandmarkEngine`: the EKF landmark ids. One :class:`LandmarkCore` with
-  B = n members advances the whole batch in one numba kernel call (spread over numba's
-  threads for large batches), and the info arrays are read off its state matrix with numpy:
-  no Python loop over members on a step's path.
+* :class:`BatchedEngine`: the EKF landmark ids and the grid Markov ids. One core with B = n
+  members advances the whole batch: :class:`LandmarkCore` in one numba kernel call (spread
+  over numba's threads for large batches), :class:`~active_loc.envs.grid_core.GridCore` with
+  one call of each grid kernel for all members (each on numba's threads); the info arrays are
+  read off the core's state matrix in one kernel call.
 * :class:`BatchedMazeEngine`: the maze. One :class:`~active_loc.envs.maze_core.MazeCore`
   with B = n steps every member in one kernel call; the n single envs stay attached to it as
   its members, to pick their mazes and starts at a reset and to render.
-* :class:`MemberEngine`: every other id (MCL, grid Markov, unknown correspondences).
+* :class:`MemberEngine`: every other id (MCL, unknown correspondences).
   Their cores hold one episode each, so the engine keeps n unwrapped single envs and steps
   and autoresets them on worker threads, each thread taking the next member left, slowest
   first (the particle and grid kernels release the GIL, so two cores run two sub-envs'
@@ -42,6 +43,7 @@ from gymnasium.utils import seeding
 from numpy.typing import NDArray
 
 from active_loc.envs.actions import check_actions
+from active_loc.envs.grid_core import GridCore
 from active_loc.envs.landmark_core import (
     S_COLLIDED,
     S_ENTROPY,
@@ -77,12 +79,12 @@ BatchInfo = dict[str, Any]
 
 
 def batched_core(env: gym.Env) -> bool:
-    """Whether ``env`` (unwrapped) runs on the fused, batch-first EKF landmark core."""
-    return (
-        isinstance(env, ActiveLocalizationEnv)
-        and type(env.core) is LandmarkCore
-        and env.config.ekf_backend == "numba"
-    )
+    """Whether ``env`` (unwrapped) runs on a core that steps B members together: the fused
+    EKF landmark core or the grid Markov core."""
+    if not isinstance(env, ActiveLocalizationEnv):
+        return False
+    core = type(env.core)
+    return core is GridCore or (core is LandmarkCore and env.config.ekf_backend == "numba")
 
 
 class WorkerThreads:
@@ -119,15 +121,16 @@ class WorkerThreads:
         return {"workers": self.workers, "_pool": None}  # threads do not pickle
 
 
-class BatchedLandmarkEngine:
-    """n EKF landmark episodes in one :class:`LandmarkCore` with B = n.
+class BatchedEngine:
+    """n episodes in one core with B = n (:func:`batched_core`).
 
     Args:
         template: a single env of the id (its config, spaces and reward settings are used).
         num_envs: n.
         render_envs: how many leading members keep the paths the renderer draws (0: none).
-        workers: numba threads the kernel spreads the members over; used when each gets at
-            least :data:`MIN_ROWS_PER_WORKER` members (and at most the cores numba has).
+        workers: numba threads (at most the cores numba has). The EKF kernel spreads the
+            members over them when each gets at least :data:`MIN_ROWS_PER_WORKER`; the grid
+            kernels spread each member's cells over them.
     """
 
     def __init__(
@@ -135,12 +138,14 @@ class BatchedLandmarkEngine:
     ) -> None:
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
-        # more threads pay off only when each gets enough members to outweigh starting them
-        self.workers = min(
-            int(workers), max(1, num_envs // MIN_ROWS_PER_WORKER), numba.config.NUMBA_NUM_THREADS
-        )
+        core_type = type(template.core)
+        workers = min(int(workers), numba.config.NUMBA_NUM_THREADS)
+        if core_type is LandmarkCore:
+            # more threads pay off only when each gets enough members to outweigh starting them
+            workers = min(workers, max(1, num_envs // MIN_ROWS_PER_WORKER))
+        self.workers = workers
         self.config = template.config
-        self.core = LandmarkCore(template.config, batch_size=num_envs)
+        self.core: LandmarkCore | GridCore = core_type(template.config, batch_size=num_envs)
         self.num_envs = num_envs
         self.single_observation_space = template.observation_space
         self.single_action_space = template.action_space

@@ -7,8 +7,9 @@ Registered as the ``vector_entry_point`` of every ``ActiveLoc`` id, so that::
 
 returns it. Sub-env i is seeded with seed + i and reproduces, step for step, a single env
 made with the same kwargs and seeded seed + i (observations, rewards, flags and infos). The
-EKF landmark ids and the maze step the whole batch in one kernel call; the others step their
-members on worker threads (:mod:`active_loc.envs.vector_engines`).
+EKF landmark ids and the maze step the whole batch in one kernel call, the grid Markov ids in
+one call of each grid kernel; the others step their members on worker threads
+(:mod:`active_loc.envs.vector_engines`).
 
 The sub-envs are rows of batched arrays, not env objects, so ``call``, ``get_attr`` and
 ``set_attr`` (gymnasium's ``SyncVectorEnv`` API) serve a fixed set of names, the same for
@@ -36,7 +37,7 @@ from active_loc.envs.field_checks import check_integer
 from active_loc.envs.localization_env import ActiveLocalizationEnv
 from active_loc.envs.maze_env import MazeEnv
 from active_loc.envs.vector_engines import (
-    BatchedLandmarkEngine,
+    BatchedEngine,
     BatchedMazeEngine,
     BatchInfo,
     MemberEngine,
@@ -89,11 +90,12 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         render_envs: how many sub-envs ``render()`` draws, tiled in a grid (1: the first
             sub-env's frame as is).
         workers: threads stepping the sub-envs (the kernels release the GIL). None: one per
-            CPU core, at most 2. The MCL and grid ids step and autoreset their sub-envs on
-            Python threads, each taking the next one left (MCL: 1.6x to 2x ``SyncVectorEnv``
-            on 2 cores); the batched EKF ids spread one kernel over numba's threads once each
-            gets 64 sub-envs or more; the maze's one kernel call runs on one thread. The
-            results are the same for any value.
+            CPU core, at most 2. The MCL ids step and autoreset their sub-envs on Python
+            threads, each taking the next one left (MCL: 1.6x to 2x ``SyncVectorEnv`` on 2
+            cores); the batched EKF ids spread one kernel over numba's threads once each gets
+            64 sub-envs or more; the grid Markov ids spread each kernel's cells over them;
+            the maze's one kernel call runs on one thread. The results are the same for any
+            value.
         env_class: the single env class (``ActiveLocalizationEnv`` or ``MazeEnv``).
         **env_kwargs: the single env's kwargs (``scenario`` and config fields, or the maze's).
 
@@ -163,7 +165,7 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         template = env_class(**env_kwargs)
         self._single_config = template.config
         self._single_metadata = template.metadata
-        self.engine: BatchedLandmarkEngine | BatchedMazeEngine | MemberEngine
+        self.engine: BatchedEngine | BatchedMazeEngine | MemberEngine
         self._renderer: Any = None
         if workers is None:
             workers = min(2, os.cpu_count() or 1)
@@ -171,7 +173,7 @@ class ActiveLocalizationVectorEnv(VectorEnv):
             assert isinstance(template, ActiveLocalizationEnv)
             # the paths a frame draws are kept only when there is something to render
             kept_paths = render_envs if render_mode is not None else 0
-            self.engine = BatchedLandmarkEngine(template, self.num_envs, kept_paths, workers)
+            self.engine = BatchedEngine(template, self.num_envs, kept_paths, workers)
         else:
             members = [template] + [env_class(**env_kwargs) for _ in range(1, self.num_envs)]
             if render_mode is not None:
@@ -379,11 +381,13 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         engine = self.engine
         if isinstance(engine, (MemberEngine, BatchedMazeEngine)):
             return engine.frame(b)
+        frame = engine.frame(b)
         if self._renderer is None:
-            from active_loc.envs.rendering import LandmarkRenderer
+            from active_loc.envs.rendering import GridFrame, GridRenderer, LandmarkRenderer
 
-            self._renderer = LandmarkRenderer()
-        return self._renderer.render_rgb(engine.frame(b))
+            grid = isinstance(frame, GridFrame)
+            self._renderer = GridRenderer() if grid else LandmarkRenderer()
+        return self._renderer.render_rgb(frame)
 
     def _member_getters(self) -> dict[str, Callable[[int], Any]]:
         """Member attribute name -> its value for sub-env b."""

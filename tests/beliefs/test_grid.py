@@ -262,6 +262,45 @@ def test_batch_members_are_independent_filters() -> None:
     assert np.array_equal(batch.entropy(), [s.entropy()[0] for s in singles])
 
 
+def test_per_member_unicycle_controls_equal_each_member_alone() -> None:
+    """Members with their own (V, omega), one of them standing still, step exactly as
+    one-member beliefs given the same control; so does a member copied in with set_member."""
+    walls = eller_maze(9, np.random.default_rng(4))
+    free = np.ascontiguousarray(~walls.T)
+    batch = GridBelief(free, 16, batch_size=3)
+    singles = [GridBelief(free, 16) for _ in range(3)]
+    controls = [(0.9, 0.4), (0.0, 0.0), (0.5, -1.2)]
+    for k in range(6):
+        v, omega = np.array(controls).T * (-1) ** k
+        batch.predict_unicycle(v, omega, 0.5, noise_std=(0.1, 0.1, 0.05))
+        for single, vb, ob in zip(singles, v, omega, strict=True):
+            single.predict_unicycle(float(vb), float(ob), 0.5, noise_std=(0.1, 0.1, 0.05))
+    for b in range(3):
+        assert np.array_equal(batch.prob[b], singles[b].prob[0])
+    other = np.ascontiguousarray(~eller_maze(9, np.random.default_rng(5)).T)
+    source = GridBelief(other, 16)
+    source.predict_unicycle(0.7, 0.3, 0.5, noise_std=(0.1, 0.1, 0.05))
+    batch.set_member(1, source)
+    assert np.array_equal(batch.prob[1], source.prob[0])
+    assert np.array_equal(batch.free[1], other) and np.array_equal(batch.free[0], free)
+    assert np.array_equal(batch.clearance[1], source.clearance[0])
+    batch.predict_unicycle(0.6, 0.2, 0.5, noise_std=(0.1, 0.1, 0.05))
+    source.predict_unicycle(0.6, 0.2, 0.5, noise_std=(0.1, 0.1, 0.05))
+    singles[0].predict_unicycle(0.6, 0.2, 0.5, noise_std=(0.1, 0.1, 0.05))
+    assert np.array_equal(batch.prob[1], source.prob[0])
+    assert np.array_equal(batch.prob[0], singles[0].prob[0])
+
+
+def test_set_member_refuses_a_belief_on_other_cells() -> None:
+    batch = GridBelief(np.ones((4, 5), dtype=bool), 8, batch_size=2)
+    with pytest.raises(ValueError, match="one-member belief of shape"):
+        batch.set_member(0, GridBelief(np.ones((5, 4), dtype=bool), 8))
+    with pytest.raises(ValueError, match="one-member belief of shape"):
+        batch.set_member(0, GridBelief(np.ones((4, 5), dtype=bool), 8, batch_size=2))
+    with pytest.raises(ValueError, match="cells"):
+        batch.set_member(0, GridBelief(np.ones((4, 5), dtype=bool), 8, cell_size=0.5))
+
+
 # --- correction, collapse, statistics --------------------------------------------------------
 
 

@@ -121,9 +121,9 @@ def test_the_dynamic_env_is_reproducible_and_renders_people():
         action = rng.uniform(-1, 1, 2).astype(np.float32)
         a, b = (env.step(action) for env in envs)
         assert np.array_equal(a[0], b[0]) and a[4] == b[4]
-    core = envs[0].unwrapped.core
-    assert core.crowd is not None and core.crowd.discs.shape == (10, 3)
-    assert np.array_equal(core.crowd.discs, envs[1].unwrapped.core.crowd.discs)
+    crowd, twin = (env.unwrapped.core.episode(0).crowd for env in envs)
+    assert crowd is not None and twin is not None and crowd.discs.shape == (10, 3)
+    assert np.array_equal(crowd.discs, twin.discs)
     frame = envs[0].render()
     assert frame.shape == (600, 600, 3)
 

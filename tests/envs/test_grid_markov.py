@@ -208,7 +208,7 @@ def test_passive_wanderer_localizes_globally() -> None:
         while not (terminated or truncated):
             obs, _, terminated, truncated, info = env.step(wander(obs))
         successes += info["is_success"]
-        lengths.append(env.unwrapped.core.t)
+        lengths.append(env.unwrapped.core.episode(0).t)
     print(f"GridMarkov-v0 passive wanderer: {successes}/50 localized, mean episode "
           f"{np.mean(lengths):.1f} steps")
     assert successes >= 45

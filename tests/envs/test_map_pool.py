@@ -56,7 +56,8 @@ def test_the_derived_tables_are_built_once_and_shared():
     b.reset(seed=5)
     ca, cb = a.unwrapped.core, b.unwrapped.core
     assert ca.maps[0] is cb.maps[0]
-    assert ca._distance is cb._distance and ca._log_table is cb._log_table
+    da, db = ca.episode(0).data, cb.episode(0).data
+    assert da is db and da.distance is db.distance and da.log_table is db.log_table
 
 
 def test_grid_cores_keep_their_own_scratch():
@@ -66,11 +67,12 @@ def test_grid_cores_keep_their_own_scratch():
     a.reset(seed=0)
     b.reset(seed=1)
     ua, ub = a.unwrapped.core, b.unwrapped.core
-    assert ua._template is ub._template
+    assert ua.episode(0).data.template is ub.episode(0).data.template
     assert ua._log_lik is not ub._log_lik
 
 
-@pytest.mark.parametrize("env_id", ["ActiveLoc/GridMCL-v0", "ActiveLoc/LandmarkEKF-v0"])
+@pytest.mark.parametrize("env_id", ["ActiveLoc/GridMCL-v0", "ActiveLoc/LandmarkEKF-v0",
+                                    "ActiveLoc/GridMarkov-v0"])
 def test_vector_env_with_a_pool_equals_single_envs(env_id):
     n, steps = 3, 25
     kwargs = {"map_pool": 2, **SMALL[env_id]}

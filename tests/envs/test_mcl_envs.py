@@ -61,7 +61,7 @@ def test_passive_wanderer_localizes_globally_on_grid_maps() -> None:
         while not (terminated or truncated):
             obs, _, terminated, truncated, info = env.step(wander(obs))
         successes += info["is_success"]
-        lengths.append(env.unwrapped.core.t)
+        lengths.append(env.unwrapped.core.episode(0).t)
     print(f"GridMCL-v0 passive wanderer: {successes}/100 localized, mean episode "
           f"{np.mean(lengths):.1f} steps")
     assert successes >= 95
@@ -209,7 +209,7 @@ def test_the_beam_model_from_a_range_table_localizes_like_ray_casting() -> None:
             final.append(info["pose_error"])
         errors[bins] = final
         if bins:
-            assert env.unwrapped.core._range_table.n_angles == bins
+            assert env.unwrapped.core.range_table.n_angles == bins
     print(f"beam model, final position errors (m): ray casting {errors[0]}, table "
           f"{errors[360]}")
     assert max(errors[0]) < 0.3 and max(errors[360]) < 0.3
@@ -249,4 +249,4 @@ def test_the_planner_view_scores_scans_as_the_filter_does(model: str, bins: int)
     assert (view.range_table is None) == (bins == 0)
     poses = view.belief.particles[:50]
     np.testing.assert_array_equal(view.scan_log_likelihood(core.ranges[0], poses),
-                                  core._scan_log_likelihood(core.ranges[0], poses))
+                                  core._scan_log_likelihood(0, core.ranges[0], poses))

@@ -19,7 +19,7 @@ from gymnasium.vector import AutoresetMode
 
 from active_loc.envs import ActiveLocalizationVectorEnv
 from active_loc.envs.landmark_core import PRANGE_MIN_MEMBERS
-from active_loc.envs.vector_engines import BatchedLandmarkEngine, BatchedMazeEngine, MemberEngine
+from active_loc.envs.vector_engines import BatchedEngine, BatchedMazeEngine, MemberEngine
 from tests.envs.test_envs import CASES, ENV_IDS, vector_actions
 
 N_ENVS = 3
@@ -28,7 +28,10 @@ LIMIT = 8
 #: ids stepped by one batched kernel call (and their discrete-action twins); every other id
 #: steps its members in turn
 BATCHED_BASE_IDS = ("ActiveLoc/Textbook-v0", "ActiveLoc/LandmarkEKF-v0")
-BATCHED_IDS = {*BATCHED_BASE_IDS, *(i.replace("-v0", "Discrete-v0") for i in BATCHED_BASE_IDS)}
+#: ids whose core steps its members' grid beliefs together (BatchedEngine too)
+GRID_IDS = ("ActiveLoc/GridMarkov-v0",)
+BATCHED_IDS = {*BATCHED_BASE_IDS, *(i.replace("-v0", "Discrete-v0") for i in BATCHED_BASE_IDS),
+               *GRID_IDS}
 
 
 def make_pair(
@@ -110,7 +113,7 @@ def test_native_equals_single_envs(env_id: str, action_type: str) -> None:
     native, sync = make_pair(env_id, AutoresetMode.NEXT_STEP, action_type=action_type)
     assert isinstance(native, ActiveLocalizationVectorEnv)
     assert native.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
-    engine = (BatchedLandmarkEngine if env_id in BATCHED_IDS
+    engine = (BatchedEngine if env_id in BATCHED_IDS
               else BatchedMazeEngine if env_id == "ActiveLoc/Maze-v0" else MemberEngine)
     assert isinstance(native.engine, engine)
     assert native.single_observation_space == sync.single_observation_space

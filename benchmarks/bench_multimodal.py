@@ -21,6 +21,8 @@ over minutes (about 25% on a shared 2-core host) lands on both. Reported:
 * ``reset``: milliseconds per ``reset()`` of a single env, with a new map every episode and
   (head only, ``map_pool``) with a pool of maps;
 * ``split``: where a head step's time goes (:func:`step_split`);
+* ``glue``: the Python time per sub-env step of the head's native vector env at n = 16
+  (:func:`vector_glue`);
 * ``tracking``: LandmarkMCL-v0 tracking a converged belief of about 500 particles, with the
   default maximum of 100000 and with a maximum of 1000 (:func:`tracking_rate`);
 * ``ppo``: PPO through ``train.py`` on the marked_rooms arena of docs/results.md (8 native
@@ -30,7 +32,7 @@ over minutes (about 25% on a shared 2-core host) lands on both. Reported:
 It measures and asserts nothing; the targets are printed beside the figures.
 
     python benchmarks/bench_multimodal.py [--repeats 3] [--ids LandmarkMCL-v0,...]
-        [--parts single,native,reset,split,tracking,ppo] [--head REF] [--json out.json]
+        [--parts single,native,reset,split,glue,tracking,ppo] [--head REF] [--json out.json]
 """
 
 from __future__ import annotations
@@ -66,6 +68,7 @@ TARGETS = {
     "ActiveLoc/Maze-v0": "native n=64 >= 3x SyncVectorEnv",
     "ActiveLoc/LandmarkMCL-v0 tracking": "max 100000 costs <= 1.4x max 1000 (~500 active)",
     "native": "every multimodal id's native n=16 >= 1.8x its single env",
+    "glue": "Python time per sub-env step <= 20 us",
 }
 
 
@@ -185,7 +188,7 @@ SPLIT_PARTS = {
                    "likelihood_field_skip_log_likelihood", "lattice_field_kernel",
                    "beam_model_log_likelihood", "log_likelihood", "measure",
                    "measure_landmarks", "cast_rays", "expected_ranges", "add_log_likelihood",
-                   "update_kernel", "normalize_log_weights"),
+                   "update_kernel", "update_log_kernel", "normalize_log_weights"),
     "resampling": ("kld_resample", "resample_particles", "systematic_resample",
                    "stratified_resample", "stream_free_poses"),
     "metrics and observation": (
@@ -275,6 +278,63 @@ def step_split(env_id: str, steps: int, kwargs: dict) -> dict:
     return {"us_per_step": split}
 
 
+def vector_glue(env_id: str, n: int, calls: int, kwargs: dict) -> dict:
+    """Microseconds of Python per sub-env step in the native vector env of ``n`` sub-envs
+    on one worker (so that the profiler sees every call): the profiled run of ``calls``
+    batched random steps less the draws (:class:`TimedGenerator`) and the parts of
+    :data:`SPLIT_PARTS`, divided by ``calls * n`` (an upper bound, as in :func:`step_split`);
+    ``sub-env step`` is the unprofiled wall time of the same run per sub-env step."""
+    import cProfile
+    import pstats
+
+    import gymnasium as gym
+    import numpy as np
+
+    envs = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point", workers=1, **kwargs)
+    single = envs.single_action_space
+    actions = np.array(_actions(single, calls * n, 1)).reshape(calls, n, *single.shape)
+
+    def run(profiler: Any = None) -> float:
+        envs.reset(seed=0)
+        start = time.perf_counter()
+        if profiler is not None:
+            profiler.enable()
+        for t in range(calls):
+            envs.step(actions[t])
+        if profiler is not None:
+            profiler.disable()
+        return time.perf_counter() - start
+
+    run()  # warm-up
+    wall = run()
+    envs.reset(seed=0)
+    clock = [0.0]
+    engine = envs.unwrapped.engine
+    if hasattr(engine, "rngs"):  # one core: the engine holds the Generators
+        engine.rngs = [TimedGenerator(rng, clock) for rng in engine.rngs]
+    else:  # single envs stepped in turn
+        for env in engine.envs:
+            env._np_random = TimedGenerator(env.np_random, clock)
+    profiler = cProfile.Profile()
+    start = time.perf_counter()
+    profiler.enable()
+    for t in range(calls):
+        envs.step(actions[t])
+    profiler.disable()
+    profiled = time.perf_counter() - start
+    parts = {name for names in SPLIT_PARTS.values() for name in names}
+    inside = 0.0
+    for (_, _, name), (_, _, tottime, _, _) in pstats.Stats(profiler).stats.items():  # type: ignore[attr-defined]
+        short = name.split("'")[1] if name.startswith("<") and "'" in name else name
+        if short in parts:
+            inside += tottime
+    envs.close()
+    steps = calls * n
+    glue = max(0.0, profiled - inside - clock[0])
+    return {"us_per_sub_env_step": {"Python (profiled)": 1e6 * glue / steps,
+                                    "sub-env step": 1e6 * wall / steps}}
+
+
 def ppo_split(env_kwargs: dict, minutes: float, n_envs: int, vec_env: str) -> dict:
     """PPO through ``train.py`` on GridMCL-v0 with ``env_kwargs`` for ``minutes``: the env's
     share of the wall time and its steps per second (``config.json``'s ``result``)."""
@@ -301,7 +361,8 @@ def worker(request: dict) -> dict:
 
     kind = request.pop("kind")
     return {"single": single_rate, "vector": vector_rate, "reset": reset_cost,
-            "split": step_split, "ppo": ppo_split, "tracking": tracking_rate}[kind](**request)
+            "split": step_split, "glue": vector_glue, "ppo": ppo_split,
+            "tracking": tracking_rate}[kind](**request)
 
 
 # --- driver ---------------------------------------------------------------------------------
@@ -347,7 +408,7 @@ def main() -> None:
     parser.add_argument("--maze-calls", type=int, default=300)
     parser.add_argument("--resets", type=int, default=5)
     parser.add_argument("--ids", default=",".join(i.split("/")[1] for i in IDS))
-    parser.add_argument("--parts", default="single,native,reset,split,tracking,ppo")
+    parser.add_argument("--parts", default="single,native,reset,split,glue,tracking,ppo")
     parser.add_argument("--ppo-minutes", type=float, default=3.0)
     parser.add_argument("--head", default=None,
                         help="time this commit (a worktree) instead of the checkout's files")
@@ -401,6 +462,11 @@ def main() -> None:
                                           "steps": _steps_for(env_id, args) // 2,
                                           "kwargs": {}})}
             report(row)
+        if "glue" in parts:
+            calls = max(2, (args.maze_calls if maze else args.calls))
+            report({"id": env_id, "case": "Python per sub-env step, native n=16",
+                    "head": measure(head, {"kind": "glue", "env_id": env_id, "n": 16,
+                                           "calls": calls, "kwargs": {}})})
     if "tracking" in parts:
         for n_particles in (100000, 1000):
             compare("ActiveLoc/LandmarkMCL-v0 tracking", f"max {n_particles} particles",

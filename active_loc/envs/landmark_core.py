@@ -217,19 +217,25 @@ def build_models(cfg: LocalizationConfig) -> EnvModels:
         params[P_SCALE] = math.hypot(width, height)
     params[P_KIND] = sensor.kind
     params[P_CONTINUOUS] = 1.0 if cfg.action_type == "continuous" else 0.0
-    params[P_REWARD] = REWARD_CODES[cfg.reward]
-    params[P_LOC_POS] = cfg.localized_position_std
-    params[P_LOC_HEAD] = cfg.localized_heading_std
-    params[P_TOL_POS] = cfg.success_position_tol
-    params[P_TOL_HEAD] = cfg.success_heading_tol
     params[P_RUN_EKF] = 1.0 if cfg.ekf_backend == "numba" else 0.0
     params[P_Q : P_Q + 9] = motion.noise_cov.ravel()
     params[P_QROOT : P_QROOT + 9] = motion.noise_root.ravel()
     params[P_R : P_R + 4] = sensor.noise_cov.ravel()
     params[P_RROOT : P_RROOT + 4] = sensor.noise_root.ravel()
-    params[P_OUTCOME] = cfg.outcome_reward
+    write_task_params(cfg, params)
     limits = ControlLimits(cfg.action_type, cfg.dt, cfg.v_min, cfg.v_max, cfg.omega_max)
     return EnvModels(motion, sensor, params, limits.primitives(), limits)
+
+
+def write_task_params(cfg: LocalizationConfig, params: NDArray[np.float64]) -> None:
+    """The entries of the packed parameter vector ``params`` that :func:`record_metrics`
+    reads: the reward, the confidence and success thresholds, the outcome reward."""
+    params[P_REWARD] = REWARD_CODES[cfg.reward]
+    params[P_LOC_POS] = cfg.localized_position_std
+    params[P_LOC_HEAD] = cfg.localized_heading_std
+    params[P_TOL_POS] = cfg.success_position_tol
+    params[P_TOL_HEAD] = cfg.success_heading_tol
+    params[P_OUTCOME] = cfg.outcome_reward
 
 
 def _map_extent(cfg: LocalizationConfig) -> tuple[float, float]:
@@ -308,16 +314,18 @@ def _simulate_one(
 
 
 @numba.njit(cache=True, nogil=True)
-def _finish_one(params: NDArray, state: NDArray, world: NDArray, obs: NDArray) -> None:
-    """Metrics of the belief (errors against the truth are for info only), the uncertainty
-    reward term against the previous values still in the row, and the observation row."""
+def record_metrics(
+    params: NDArray, state: NDArray, entropy: float, logdet: float, kidnap_unresolved: bool
+) -> None:
+    """The metrics of a state row's belief (its ``mean`` and ``cov`` already written, with
+    ``entropy`` in nats and the covariance's ``logdet``) against the truth (the errors are for
+    info only): the uncertainty reward term against the previous values still in the row,
+    the errors, the confidence and success flags (:func:`belief_metrics`) and the outcome
+    term. Every core records its members' metrics through this one function."""
     pose = state[X_POSE : X_POSE + 3]
     mean = state[X_MEAN : X_MEAN + 3]
     cov = state[X_COV : X_COV + 9].reshape(3, 3)
     stats = state[X_STATS : X_STATS + N_STATS]
-    det = det3(cov)
-    logdet = np.log(det) if det > 0 else -np.inf
-    entropy = 0.5 * (LOG_2PIE_3 + logdet)
     trace = cov[0, 0] + cov[1, 1] + cov[2, 2]
     stats[S_UNCERTAINTY_REWARD] = uncertainty_reward(
         int(params[P_REWARD]), stats[S_ENTROPY], entropy, stats[S_LOGDET], logdet,
@@ -331,7 +339,7 @@ def _finish_one(params: NDArray, state: NDArray, world: NDArray, obs: NDArray) -
     stats[S_POS_ERR] = pos_err
     stats[S_HEAD_ERR] = head_err
     pos_std, head_std, localized, success, terminal = belief_metrics(
-        cov, pos_err, head_err, False, params[P_LOC_POS], params[P_LOC_HEAD],
+        cov, pos_err, head_err, kidnap_unresolved, params[P_LOC_POS], params[P_LOC_HEAD],
         params[P_TOL_POS], params[P_TOL_HEAD],
     )
     stats[S_POS_STD] = pos_std
@@ -340,8 +348,19 @@ def _finish_one(params: NDArray, state: NDArray, world: NDArray, obs: NDArray) -
     stats[S_SUCCESS] = 1.0 if success else 0.0
     stats[S_TERMINAL] = 1.0 if terminal else 0.0
     stats[S_OUTCOME] = outcome_term(terminal, success, params[P_OUTCOME])
+
+
+@numba.njit(cache=True, nogil=True)
+def _finish_one(params: NDArray, state: NDArray, world: NDArray, obs: NDArray) -> None:
+    """The EKF belief's metrics (:func:`record_metrics`) and the observation row."""
+    mean = state[X_MEAN : X_MEAN + 3]
+    cov = state[X_COV : X_COV + 9].reshape(3, 3)
+    det = det3(cov)
+    logdet = np.log(det) if det > 0 else -np.inf
+    entropy = 0.5 * (LOG_2PIE_3 + logdet)
+    record_metrics(params, state, entropy, logdet, False)
     visible = world[:, W_VISIBLE]
-    stats[S_N_VISIBLE] = visible.sum()
+    state[X_STATS + S_N_VISIBLE] = visible.sum()
     write_belief_observation(
         mean, cov, entropy, world[:, W_Z : W_Z + 2], visible,
         world[:, W_LANDMARK : W_LANDMARK + 2], int(state[X_BOX + B_COUNT]),

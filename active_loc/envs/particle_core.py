@@ -38,22 +38,32 @@ from active_loc.envs.crowd import Crowd
 from active_loc.envs.field_checks import check_memory
 from active_loc.envs.landmark_core import (
     N_PARAMS,
+    N_STATS,
     P_SCALE,
+    S_COLLIDED,
+    S_KIDNAPPED,
+    S_N_VISIBLE,
+    S_OUTCOME,
+    S_UNCERTAINTY_REWARD,
     STATE_SIZE,
+    X_BOX,
+    X_COV,
+    X_MEAN,
+    X_STATS,
     EnvModels,
     StateViews,
     build_models,
     build_motion,
     fixed_landmark_map,
+    record_metrics,
+    write_task_params,
 )
-from active_loc.envs.metrics import belief_metrics
 from active_loc.envs.observations import (
     BELIEF_HEADER,
     SLOT_SIZE,
     write_belief_header,
     write_landmark_slots,
 )
-from active_loc.envs.rewards import REWARD_CODES, outcome_term, uncertainty_reward
 from active_loc.geometry import wrap_angle
 from active_loc.maps import LandmarkMap, OccupancyGrid, random_landmark_map
 from active_loc.maps.generators import GENERATORS
@@ -169,6 +179,7 @@ class ParticleCore(StateViews):
             )
             params = np.zeros(N_PARAMS)
             params[P_SCALE] = config.max_range
+            write_task_params(config, params)
             self.models = EnvModels(
                 build_motion(config), self.lidar, params, limits.primitives(), limits
             )
@@ -544,57 +555,20 @@ class ParticleCore(StateViews):
         """Member ``b``'s metrics row and observation from its belief summary."""
         cfg = self.config
         episode = self.episode(b)
-        row = self.rows[b]
-        row["mean"] = mean
-        row["cov"] = cov
-        trace = float(np.trace(cov))
-        row["uncertainty_reward"] = 0.0 if first else uncertainty_reward(
-            REWARD_CODES[cfg.reward], row["entropy"], entropy, row["logdet"], logdet,
-            row["trace"], trace,
-        )
-        row["entropy"] = entropy
-        row["logdet"] = logdet
-        row["trace"] = trace
-        pose = row["pose"]
-        pos_err = float(np.hypot(pose[0] - mean[0], pose[1] - mean[1]))
-        head_err = float(abs(wrap_angle(pose[2] - mean[2])))
         # with a kidnapping ahead, or just behind, localizing now is not yet the end of the task
         unresolved = cfg.kidnap and (
             not episode.kidnapped or episode.t < episode.kidnap_step + cfg.kidnap_grace
         )
-        pos_std, head_std, localized, success, terminal = belief_metrics(
-            cov, pos_err, head_err, unresolved, cfg.localized_position_std,
-            cfg.localized_heading_std, cfg.success_position_tol, cfg.success_heading_tol,
-        )
-        row["pos_err"] = pos_err
-        row["head_err"] = head_err
-        row["pos_std"] = pos_std
-        row["head_std"] = head_std
-        row["collided"] = collided
-        row["localized"] = localized
-        row["success"] = success
-        row["terminal"] = terminal
-        row["outcome"] = 0.0 if first else outcome_term(terminal, success, cfg.outcome_reward)
-        row["kidnapped"] = kidnapped_now
-        row["n_visible"] = float(self.visible[b].sum()) if not self.grid_mode else 0.0
-        self._write_observation(b, mean, cov, entropy, hist)
-
-    def _write_observation(
-        self, b: int, mean: NDArray, cov: NDArray, entropy: float, hist: NDArray
-    ) -> None:
+        n_visible = 0.0 if self.grid_mode else float(self.visible[b].sum())
         out = self.obs[b]
-        bounds = self.rows[b]["bounds"]
-        write_belief_header(mean, cov, entropy, bounds, out)
-        # where the belief's mass is, on a coarse grid over the map
-        cells = HISTOGRAM_CELLS
-        start = BELIEF_HEADER
-        out[start : start + cells * cells] = np.clip(hist, 0.0, 1.0)
-        start += cells * cells
+        finish_member(self.models.params, self.state[b], out, mean, cov, entropy, logdet, hist,
+                      unresolved, first, collided, kidnapped_now, n_visible)
+        start = BELIEF_HEADER + HISTOGRAM_CELLS * HISTOGRAM_CELLS
         if self.grid_mode:
             assert self.lidar is not None
             out[start:] = np.clip(self.ranges[b] / self.lidar.max_range, 0.0, 1.0)
         else:
-            lmap = self.episode(b).map
+            lmap = episode.map
             assert isinstance(lmap, LandmarkMap)
             write_landmark_slots(
                 mean, self.z[b], self.visible[b], self.landmarks[b], lmap.n_landmarks,
@@ -629,3 +603,31 @@ def mass_histogram(
         iy = min(max(int((points[k, 1] - bounds[1]) / height * cells), 0), cells - 1)
         out[iy * cells + ix] += weights[k]
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def finish_member(
+    params: NDArray, state: NDArray, obs: NDArray, mean: NDArray, cov: NDArray,
+    entropy: float, logdet: float, hist: NDArray, kidnap_unresolved: bool, first: bool,
+    collided: bool, kidnapped_now: bool, n_visible: float,
+) -> None:
+    """A member's state row ``state`` and the start of its observation row ``obs`` from its
+    belief summary: mean ``(3,)``, covariance ``(3, 3)``, entropy (nats), log det and mass
+    histogram ``(64,)``. The metrics are :func:`~active_loc.envs.landmark_core.
+    record_metrics`'s; a reset (``first``) has no reward or outcome yet."""
+    for i in range(3):
+        state[X_MEAN + i] = mean[i]
+        for j in range(3):
+            state[X_COV + 3 * i + j] = cov[i, j]
+    record_metrics(params, state, entropy, logdet, kidnap_unresolved)
+    stats = state[X_STATS : X_STATS + N_STATS]
+    if first:
+        stats[S_UNCERTAINTY_REWARD] = 0.0
+        stats[S_OUTCOME] = 0.0
+    stats[S_COLLIDED] = 1.0 if collided else 0.0
+    stats[S_KIDNAPPED] = 1.0 if kidnapped_now else 0.0
+    stats[S_N_VISIBLE] = n_visible
+    write_belief_header(mean, cov, entropy, state[X_BOX : X_BOX + 4], obs)
+    # where the belief's mass is, on a coarse grid over the map
+    for i in range(hist.shape[0]):
+        obs[BELIEF_HEADER + i] = min(max(hist[i], 0.0), 1.0)

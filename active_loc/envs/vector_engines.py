@@ -12,12 +12,12 @@ Three engines with one interface (``obs``, ``reset_member``, ``reset_members``, 
 * :class:`BatchedMazeEngine`: the maze. One :class:`~active_loc.envs.maze_core.MazeCore`
   with B = n steps every member in one kernel call; the n single envs stay attached to it as
   its members, to pick their mazes and starts at a reset and to render.
-* :class:`MemberEngine`: every other id (MCL, unknown correspondences).
-  Their cores hold one episode each, so the engine keeps n unwrapped single envs and steps
-  and autoresets them on worker threads, each thread taking the next member left, slowest
-  first (the particle and grid kernels release the GIL, so two cores run two sub-envs'
-  filters at once). It also skips gymnasium's wrapper stack and ``SyncVectorEnv``'s
-  per-step copies.
+* :class:`MemberEngine`: every other id (MCL, unknown correspondences). A particle core
+  steps its members' filters one after another, so the engine keeps n unwrapped single envs
+  and steps and autoresets them on worker threads instead, each thread taking the next
+  member left, slowest first (the particle kernels release the GIL, so two cores run two
+  sub-envs' filters at once). It also skips gymnasium's wrapper stack and
+  ``SyncVectorEnv``'s per-step copies.
 
 Either way member ``b`` draws only from its own Generator, in the same order as a single env
 seeded the same, so the vector env reproduces n single envs exactly.

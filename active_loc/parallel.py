@@ -16,6 +16,7 @@ import os
 import threading
 import types
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numba
@@ -99,3 +100,38 @@ def parallel_twin(kernel: Any) -> Any:
 def pick(serial: Any, parallel: Any) -> Any:
     """``parallel`` when :func:`use_parallel` allows it, else ``serial``."""
     return parallel if use_parallel() else serial
+
+
+class WorkerThreads:
+    """Worker threads that run the tasks of a step, one member each (started when first
+    needed)."""
+
+    def __init__(self, workers: int) -> None:
+        self.workers = workers
+        self._pool: ThreadPoolExecutor | None = None
+
+    def run_tasks(self, fn: Any, tasks: list[Any]) -> None:
+        """``fn(task)`` for every task, the threads each taking the next one left in the list
+        as they finish one (put the longest first: the threads then end together); re-raises
+        the first error (a failing step, say) after all have finished."""
+        if self._pool is None:
+            # the workers already share the cores: each runs the kernels' serial twins
+            self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="active_loc",
+                                            initializer=set_thread_count, initargs=(1,))
+        queue = iter(tasks)  # next() on a list iterator is atomic under the GIL
+
+        def drain() -> None:
+            for task in queue:
+                fn(task)
+
+        threads = min(self.workers, len(tasks))
+        for future in [self._pool.submit(drain) for _ in range(threads)]:
+            future.result()
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {"workers": self.workers, "_pool": None}  # threads do not pickle

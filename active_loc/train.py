@@ -666,17 +666,15 @@ def _native_speed_up(env_id: str, env_kwargs: dict[str, Any], n_envs: int) -> st
     env = make_env(env_id, **env_kwargs)
     try:
         unwrapped = env.unwrapped
+        # the maze's grid belief is too cheap a step for threads to pay off
+        if (isinstance(unwrapped, ActiveLocalizationEnv)
+                and unwrapped.config.belief in THREADED_BELIEFS):
+            return "threads" if (os.cpu_count() or 1) >= 2 else None
         if batched_core(unwrapped):
             # a grid Markov member is milliseconds of kernels: batching pays from 2 on
             grid = unwrapped.config.belief == "grid"
             return "kernel" if grid or n_envs >= NATIVE_MIN_ENVS else None
-        # the maze's grid belief is too cheap a step for threads to pay off
-        threaded = (
-            isinstance(unwrapped, ActiveLocalizationEnv)
-            and unwrapped.config.belief in THREADED_BELIEFS
-            and (os.cpu_count() or 1) >= 2
-        )
-        return "threads" if threaded else None
+        return None
     finally:
         env.close()
 

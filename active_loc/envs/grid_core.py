@@ -48,6 +48,7 @@ from active_loc.envs.particle_core import (
     build_lidar,
 )
 from active_loc.maps import LandmarkMap, OccupancyGrid
+from active_loc.parallel import thread_count
 from active_loc.sensors.lidar_lattice import (
     lattice_field_log_likelihood,
     off_map_log_probability,
@@ -183,6 +184,58 @@ class GridCore(ParticleCore):
             member.initialize_gaussian(mean, cov)
         self.grid_belief.set_member(b, member)
 
+    # -- step ----------------------------------------------------------------------------------
+
+    def step(
+        self,
+        rngs: Sequence[np.random.Generator],
+        active: NDArray[np.bool_] | None = None,
+        threads: int | None = None,
+    ) -> int:
+        """Advance the members with the actions in :attr:`actions` ``(B, 2)``: each member's
+        world, then every belief in one call of each grid kernel, then each member's metrics.
+
+        Args:
+            rngs: the Generator of each member.
+            active: ``(B,)`` which members to advance; None: all. (The others are about to
+                be reset: their beliefs are predicted and corrected with stale values, never
+                their Generators touched.)
+            threads: numba threads for the grid kernels (1: their serial twins); None: this
+                thread's setting. The result does not depend on it.
+
+        Returns:
+            -1, or the index of a member whose action is not finite (nothing advanced then).
+        """
+        members = self._members(active)
+        bad = self._first_bad_action(members)
+        if bad >= 0:
+            return bad
+        controls = self._controls(members)
+        collided = np.zeros(self.batch_size, dtype=np.bool_)
+        kidnapped_now = np.zeros(self.batch_size, dtype=np.bool_)
+        for b in members:
+            kidnapped_now[b], collided[b] = self._advance_truth(
+                b, float(controls[b, 0]), float(controls[b, 1]), rngs[b])
+        # a blocked robot did not move: the filter predicts with V = 0
+        controls[collided, 0] = 0.0
+        with thread_count(threads):
+            self._filter_step(members, controls, rngs)
+            assert self.grid_belief is not None
+            summaries = self._summaries(self.grid_belief, members, None)
+        for b, summary in zip(members, summaries, strict=True):
+            self._finish(b, *summary, collided=bool(collided[b]),
+                         kidnapped_now=bool(kidnapped_now[b]), first=False)
+        return -1
+
+    def reset_members(
+        self, rows: Sequence[int], rngs: Sequence[np.random.Generator],
+        threads: int | None = None,
+    ) -> None:
+        """:meth:`reset_member` of each member in ``rows``, in turn (the members share the
+        batch's belief arrays)."""
+        for b, rng in zip(rows, rngs, strict=True):
+            self.reset_member(b, rng)
+
     # -- Algorithm 1 ---------------------------------------------------------------------------
 
     def _filter_step(
@@ -224,11 +277,6 @@ class GridCore(ParticleCore):
         member = self.member_belief(b)
         assert member is not None
         return self._summaries(member, [0], b)[0]
-
-    def _step_summaries(self, members: list[int]) -> list[BeliefSummary]:
-        """The stepped members' summaries, from one call of each kernel over the batch."""
-        assert self.grid_belief is not None
-        return self._summaries(self.grid_belief, members, None)
 
     def _summaries(self, belief: GridBelief, members: list[int], b: int | None
                    ) -> list[BeliefSummary]:

@@ -734,6 +734,15 @@ class LandmarkCore(StateViews):
         self.rows[b]["noise_cursor"] = 0
         self.noise_source[b] = rng
 
+    def reset_members(
+        self, rows: Sequence[int], rngs: Sequence[np.random.Generator],
+        threads: int | None = None,
+    ) -> None:
+        """:meth:`reset_member` of each member in ``rows`` with its Generator in ``rngs``
+        (aligned with ``rows``), in turn (a reset is microseconds: ``threads`` is unused)."""
+        for b, rng in zip(rows, rngs, strict=True):
+            self.reset_member(b, rng)
+
     def step(
         self,
         rngs: Sequence[np.random.Generator],

@@ -20,10 +20,11 @@ belief), then the scan: landmark slots on landmark maps, ranges / max_range for 
 from __future__ import annotations
 
 import functools
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -69,7 +70,7 @@ from active_loc.maps import LandmarkMap, OccupancyGrid, random_landmark_map
 from active_loc.maps.generators import GENERATORS
 from active_loc.maps.pool import pool_map_rng, shared_pool
 from active_loc.motion import move_on_grid, move_within_bounds
-from active_loc.parallel import thread_count
+from active_loc.parallel import WorkerThreads
 from active_loc.sensors.lidar import LidarSensor
 from active_loc.sensors.range_table import RangeTable
 
@@ -200,6 +201,10 @@ class ParticleCore(StateViews):
         self.ranges = np.zeros((b, config.n_beams))
         self.landmarks = np.zeros((b, n, 2))
         self.beliefs: list[MCLBelief | None] = [None] * b
+        self._workers: WorkerThreads | None = None  # started by the first threaded call
+        self._seconds = np.zeros(b)  # how long each member's last threaded call took
+        if self.fixed_map is not None:  # built now, so that threaded resets share it
+            self._fixed_data = self.derive_map_data(config, self.fixed_map)
         self._bin_variance = np.diag(np.square(ENTROPY_BINS) / 12.0)
 
     # -- members -------------------------------------------------------------------------------
@@ -331,8 +336,7 @@ class ParticleCore(StateViews):
         the pool's (``map_pool``), or a new one drawn with ``rng``."""
         cfg = self.config
         if self.fixed_map is not None:
-            if self._fixed_data is None:
-                self._fixed_data = self.derive_map_data(cfg, self.fixed_map)
+            assert self._fixed_data is not None
             return self.fixed_map, self._fixed_data
         if cfg.map_pool is not None:
             build = functools.partial(_pool_entry, type(self), cfg)
@@ -405,37 +409,84 @@ class ParticleCore(StateViews):
         Args:
             rngs: the Generator of each member.
             active: ``(B,)`` which members to advance; None: all. (The others are about to
-                be reset: their beliefs may be stepped too, never their Generators.)
-            threads: numba threads for the kernels (1: their serial twins); None: this
-                thread's setting. The result does not depend on it.
+                be reset: their Generators are not touched.)
+            threads: how many members step at once, each on a worker thread and the
+                kernels' serial twins; None or 1: one after another in this thread. The
+                result does not depend on it.
 
         Returns:
             -1, or the index of a member whose action is not finite (nothing advanced then).
         """
-        members = list(range(self.batch_size)) if active is None else (
-            np.flatnonzero(active).tolist())
-        for b in members:
-            if not np.all(np.isfinite(self.actions[b])):
-                return b
-        with thread_count(threads):
-            limits = self.models.limits
-            controls = np.zeros((self.batch_size, 2))  # what each filter predicts with
-            collided = np.zeros(self.batch_size, dtype=np.bool_)
-            kidnapped_now = np.zeros(self.batch_size, dtype=np.bool_)
-            for b in members:
-                action = self.actions[b]
-                if limits.action_type == "continuous":
-                    v, omega = limits.decode(action)
-                else:
-                    v, omega = float(action[0]), float(action[1])
-                kidnapped_now[b], collided[b] = self._advance_truth(b, v, omega, rngs[b])
-                # a blocked robot did not move: the filter predicts with V = 0
-                controls[b] = (0.0 if collided[b] else v, omega)
-            self._filter_step(members, controls, rngs)
-            for b, summary in zip(members, self._step_summaries(members), strict=True):
-                self._finish(b, *summary, collided=bool(collided[b]),
-                             kidnapped_now=bool(kidnapped_now[b]), first=False)
+        members = self._members(active)
+        bad = self._first_bad_action(members)
+        if bad >= 0:
+            return bad
+        controls = self._controls(members)
+        tasks = [(b, controls[b], rngs[b]) for b in members]
+        self._run(self._step_member, tasks, threads)
         return -1
+
+    def reset_members(
+        self, rows: Sequence[int], rngs: Sequence[np.random.Generator],
+        threads: int | None = None,
+    ) -> None:
+        """:meth:`reset_member` of each member in ``rows`` with its Generator in ``rngs``
+        (aligned with ``rows``), ``threads`` at once as in :meth:`step`."""
+        self._run(self.reset_member, list(zip(rows, rngs, strict=True)), threads)
+
+    def _run(self, fn: Any, tasks: list[tuple], threads: int | None) -> None:
+        """``fn(b, ...)`` for each task ``(b, ...)``: in turn, or on ``threads`` worker
+        threads taking first the members whose last call took longest, so that a few
+        100000-particle steps do not all land on one thread."""
+        if threads is None or threads <= 1 or len(tasks) < 2:
+            for task in tasks:
+                fn(*task)
+            return
+        if self._workers is None or self._workers.workers != threads:
+            self._workers = WorkerThreads(threads)
+        seconds = self._seconds
+
+        def timed(task: tuple) -> None:
+            start = time.perf_counter()
+            fn(*task)
+            seconds[task[0]] = time.perf_counter() - start
+
+        tasks.sort(key=lambda task: -seconds[task[0]])
+        self._workers.run_tasks(timed, tasks)
+
+    def _members(self, active: NDArray[np.bool_] | None) -> list[int]:
+        """The indices of the members to step (``active``, or all)."""
+        if active is None:
+            return list(range(self.batch_size))
+        return np.flatnonzero(active).tolist()
+
+    def _first_bad_action(self, members: list[int]) -> int:
+        """The first of ``members`` whose action is not finite, or -1."""
+        finite = np.isfinite(self.actions[members]).all(axis=1)
+        return -1 if finite.all() else members[int(np.argmin(finite))]
+
+    def _controls(self, members: list[int]) -> NDArray[np.float64]:
+        """``(B, 2)`` the commanded ``(V, omega)`` (m/s, rad/s) of ``members`` (0 elsewhere):
+        the continuous actions decoded, or the discrete ones' primitives as they are."""
+        out = np.zeros((self.batch_size, 2))
+        limits = self.models.limits
+        for b in members:
+            action = self.actions[b]
+            if limits.action_type == "continuous":
+                out[b] = limits.decode(action)
+            else:
+                out[b] = action
+        return out
+
+    def _step_member(self, b: int, control: NDArray[np.float64],
+                     rng: np.random.Generator) -> None:
+        """One step of member ``b`` with its commanded ``(V, omega)``."""
+        v, omega = float(control[0]), float(control[1])
+        kidnapped_now, collided = self._advance_truth(b, v, omega, rng)
+        # a blocked robot did not move: the filter predicts with V = 0
+        self._filter_member(b, np.array([0.0 if collided else v, omega]), rng)
+        self._finish(b, *self._member_summary(b), collided=collided,
+                     kidnapped_now=kidnapped_now, first=False)
 
     def _advance_truth(
         self, b: int, v: float, omega: float, rng: np.random.Generator
@@ -454,34 +505,30 @@ class ParticleCore(StateViews):
             episode.crowd.step(episode.map, self.config.dt, self.pose[b, :2], rng)
         return kidnapped_now, collided
 
-    def _filter_step(
-        self, members: list[int], controls: NDArray[np.float64],
-        rngs: Sequence[np.random.Generator],
-    ) -> None:
-        """Each member's MCL step: predict with its control ``controls[b]`` ``(V, omega)``,
+    def _filter_member(self, b: int, control: NDArray[np.float64],
+                       rng: np.random.Generator) -> None:
+        """Member ``b``'s MCL step: predict with its executed ``control`` ``(V, omega)``,
         take the scan from the true pose and correct."""
-        for b in members:
-            belief = self.beliefs[b]
-            assert belief is not None
-            rng = rngs[b]
-            belief.predict(controls[b], rng)
-            episode = self.episode(b)
-            lmap = episode.map
-            if isinstance(lmap, OccupancyGrid):
-                ranges = self._scan(b, rng)
-                update_with_scan(belief, ranges,
-                                 functools.partial(self._scan_log_likelihood, b, ranges),
-                                 episode.data.dual, rng)
-            else:
-                sensor = self.models.sensor
-                z, visible = sensor.measure(self.pose[b], lmap.positions, rng)
-                n = lmap.n_landmarks
-                self.z[b, :n] = z
-                self.visible[b, :n] = visible
-                belief.update_landmarks(
-                    z, visible, lmap.positions, sensor, rng,
-                    known_correspondence=self.config.known_correspondences,
-                )
+        belief = self.beliefs[b]
+        assert belief is not None
+        belief.predict(control, rng)
+        episode = self.episode(b)
+        lmap = episode.map
+        if isinstance(lmap, OccupancyGrid):
+            ranges = self._scan(b, rng)
+            update_with_scan(belief, ranges,
+                             functools.partial(self._scan_log_likelihood, b, ranges),
+                             episode.data.dual, rng)
+        else:
+            sensor = self.models.sensor
+            z, visible = sensor.measure(self.pose[b], lmap.positions, rng)
+            n = lmap.n_landmarks
+            self.z[b, :n] = z
+            self.visible[b, :n] = visible
+            belief.update_landmarks(
+                z, visible, lmap.positions, sensor, rng,
+                known_correspondence=self.config.known_correspondences,
+            )
 
     def _scan(self, b: int, rng: np.random.Generator) -> NDArray[np.float64]:
         """Member ``b``'s lidar scan ``(M,)`` (m) from its true pose (people occlude), kept in
@@ -530,10 +577,6 @@ class ParticleCore(StateViews):
     def _reset_summary(self, b: int) -> BeliefSummary:
         """Member ``b``'s belief summary after its reset."""
         return self._member_summary(b)
-
-    def _step_summaries(self, members: list[int]) -> list[BeliefSummary]:
-        """The belief summaries of the stepped members, in order."""
-        return [self._member_summary(b) for b in members]
 
     def _member_summary(self, b: int) -> BeliefSummary:
         """Member ``b``'s particle set summarized: mean ``(3,)``, covariance ``(3, 3)``,

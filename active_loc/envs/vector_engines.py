@@ -4,20 +4,20 @@ Three engines with one interface (``obs``, ``reset_member``, ``reset_members``, 
 ``infos``, ``info_dicts``, ``frame``, ``workers``, and per member ``np_random``,
 ``np_random_seed``, ``set_np_random``; ``set_specs``):
 
-* :class:`BatchedEngine`: the EKF landmark ids and the grid Markov ids. One core with B = n
+* :class:`BatchedEngine`: the EKF landmark, MCL and grid Markov ids. One core with B = n
   members advances the whole batch: :class:`LandmarkCore` in one numba kernel call (spread
   over numba's threads for large batches), :class:`~active_loc.envs.grid_core.GridCore` with
-  one call of each grid kernel for all members (each on numba's threads); the info arrays are
-  read off the core's state matrix in one kernel call.
+  one call of each grid kernel for all members (each on numba's threads),
+  :class:`~active_loc.envs.particle_core.ParticleCore` with its members' filters on worker
+  threads (the particle kernels release the GIL, so two cores run two members' filters at
+  once); the info arrays are read off the core's state matrix in one kernel call.
 * :class:`BatchedMazeEngine`: the maze. One :class:`~active_loc.envs.maze_core.MazeCore`
   with B = n steps every member in one kernel call; the n single envs stay attached to it as
   its members, to pick their mazes and starts at a reset and to render.
-* :class:`MemberEngine`: every other id (MCL, unknown correspondences). A particle core
-  steps its members' filters one after another, so the engine keeps n unwrapped single envs
-  and steps and autoresets them on worker threads instead, each thread taking the next
-  member left, slowest first (the particle kernels release the GIL, so two cores run two
-  sub-envs' filters at once). It also skips gymnasium's wrapper stack and
-  ``SyncVectorEnv``'s per-step copies.
+* :class:`MemberEngine`: the ids with identical-looking landmarks, whose association core
+  holds one episode. The engine keeps n unwrapped single envs and steps and autoresets them
+  on worker threads, each thread taking the next member left, slowest first. It also skips
+  gymnasium's wrapper stack and ``SyncVectorEnv``'s per-step copies.
 
 Either way member ``b`` draws only from its own Generator, in the same order as a single env
 seeded the same, so the vector env reproduces n single envs exactly.
@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import gymnasium as gym
@@ -68,8 +67,9 @@ from active_loc.envs.localization_env import (
 )
 from active_loc.envs.maze_env import MazeEnv
 from active_loc.envs.outcome import flat_reward_terms, info_dtype
+from active_loc.envs.particle_core import ParticleCore
 from active_loc.envs.rewards import step_reward
-from active_loc.parallel import set_thread_count
+from active_loc.parallel import WorkerThreads
 
 #: the fewest members a worker thread of the batched engine steps (fewer: one thread)
 MIN_ROWS_PER_WORKER = 64
@@ -79,46 +79,13 @@ BatchInfo = dict[str, Any]
 
 
 def batched_core(env: gym.Env) -> bool:
-    """Whether ``env`` (unwrapped) runs on a core that steps B members together: the fused
-    EKF landmark core or the grid Markov core."""
+    """Whether ``env`` (unwrapped) runs on a core that holds B members: the fused EKF
+    landmark core, the particle (MCL) core or the grid Markov core."""
     if not isinstance(env, ActiveLocalizationEnv):
         return False
     core = type(env.core)
-    return core is GridCore or (core is LandmarkCore and env.config.ekf_backend == "numba")
-
-
-class WorkerThreads:
-    """Worker threads an engine runs the tasks of a step on (started when first needed)."""
-
-    def __init__(self, workers: int) -> None:
-        self.workers = workers
-        self._pool: ThreadPoolExecutor | None = None
-
-    def run_tasks(self, fn: Any, tasks: list[Any]) -> None:
-        """``fn(task)`` for every task, the threads each taking the next one left in the list
-        as they finish one (put the longest first: the threads then end together); re-raises
-        the first error (a failing step, say) after all have finished."""
-        if self._pool is None:
-            # the workers already share the cores: each runs the kernels' serial twins
-            self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="active_loc",
-                                            initializer=set_thread_count, initargs=(1,))
-        queue = iter(tasks)  # next() on a list iterator is atomic under the GIL
-
-        def drain() -> None:
-            for task in queue:
-                fn(task)
-
-        threads = min(self.workers, len(tasks))
-        for future in [self._pool.submit(drain) for _ in range(threads)]:
-            future.result()
-
-    def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown()
-            self._pool = None
-
-    def __getstate__(self) -> dict[str, Any]:
-        return {"workers": self.workers, "_pool": None}  # threads do not pickle
+    return core in (ParticleCore, GridCore) or (
+        core is LandmarkCore and env.config.ekf_backend == "numba")
 
 
 class BatchedEngine:
@@ -128,9 +95,10 @@ class BatchedEngine:
         template: a single env of the id (its config, spaces and reward settings are used).
         num_envs: n.
         render_envs: how many leading members keep the paths the renderer draws (0: none).
-        workers: numba threads (at most the cores numba has). The EKF kernel spreads the
-            members over them when each gets at least :data:`MIN_ROWS_PER_WORKER`; the grid
-            kernels spread each member's cells over them.
+        workers: threads (at most the cores numba has). The EKF kernel spreads the members
+            over numba's threads when each gets at least :data:`MIN_ROWS_PER_WORKER`; the
+            grid kernels spread each member's cells over them; the MCL members step and
+            reset on worker threads, ``workers`` at once.
     """
 
     def __init__(
@@ -139,13 +107,16 @@ class BatchedEngine:
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
         core_type = type(template.core)
-        workers = min(int(workers), numba.config.NUMBA_NUM_THREADS)
+        if core_type is ParticleCore:  # Python threads, one member each
+            self.workers = min(int(workers), num_envs)
+        else:  # numba's threads
+            self.workers = min(int(workers), numba.config.NUMBA_NUM_THREADS)
         if core_type is LandmarkCore:
             # more threads pay off only when each gets enough members to outweigh starting them
-            workers = min(workers, max(1, num_envs // MIN_ROWS_PER_WORKER))
-        self.workers = workers
+            self.workers = min(self.workers, max(1, num_envs // MIN_ROWS_PER_WORKER))
         self.config = template.config
-        self.core: LandmarkCore | GridCore = core_type(template.config, batch_size=num_envs)
+        self.core: LandmarkCore | ParticleCore = core_type(template.config,
+                                                           batch_size=num_envs)
         self.num_envs = num_envs
         self.single_observation_space = template.observation_space
         self.single_action_space = template.action_space
@@ -178,16 +149,25 @@ class BatchedEngine:
         rng = self.rngs[b]
         assert rng is not None
         self.core.reset_member(b, rng)
+        self._start_episode(b)
+
+    def reset_members(self, rows: Sequence[int]) -> None:
+        """Autoreset the members in ``rows`` (their Generators go on; the MCL members'
+        resets on the worker threads)."""
+        if not rows:
+            return
+        rngs: list[np.random.Generator] = [self.rngs[b] for b in rows]  # type: ignore[misc]
+        self.core.reset_members(rows, rngs, threads=self.workers)
+        for b in rows:
+            self._start_episode(b)
+
+    def _start_episode(self, b: int) -> None:
+        """Member ``b``'s counters and paths at the start of its episode."""
         self.collisions[b] = 0
         self.steps[b] = 0
         if b < self._render_envs:
             self._paths[b] = ([self.core.pose[b, :2].copy()],
                               [self.core.belief_mean[b, :2].copy()])
-
-    def reset_members(self, rows: Sequence[int]) -> None:
-        """Autoreset the members in ``rows`` (their Generators go on)."""
-        for b in rows:
-            self.reset_member(b, None, None)
 
     def np_random(self, b: int) -> np.random.Generator:
         """Member ``b``'s Generator (made unseeded if it has none yet, as ``Env`` does)."""

@@ -1,8 +1,9 @@
 """The particle and grid cores with B members: each member is the single env's episode.
 
 A core of three members, fed the members' Generators and actions, must give the rows and
-observations of three one-member cores fed the same, bit for bit; a member left out of a
-step (``active``) must not touch its Generator, and its reset must make it a fresh episode.
+observations of three one-member cores fed the same, bit for bit, whether its members run in
+turn or on worker threads; a member left out of a step (``active``) must not touch its
+Generator, and its reset must make it a fresh episode.
 """
 
 from __future__ import annotations
@@ -41,8 +42,9 @@ def assert_same(batch: Any, singles: list[Any]) -> None:
         np.testing.assert_array_equal(batch.obs[b], single.obs[0])
 
 
+@pytest.mark.parametrize("threads", [None, 2])
 @pytest.mark.parametrize(("env_id", "kwargs"), CASES)
-def test_a_core_of_three_members_equals_three_single_cores(env_id, kwargs):
+def test_a_core_of_three_members_equals_three_single_cores(env_id, kwargs, threads):
     n, steps, skipped = 3, 10, 1
     batch, singles = cores(env_id, kwargs, n)
     rngs = [np.random.default_rng(s) for s in (5, 6, 7)]
@@ -58,14 +60,14 @@ def test_a_core_of_three_members_equals_three_single_cores(env_id, kwargs):
         active = np.ones(n, dtype=np.bool_)
         if t == steps // 2:
             active[skipped] = False  # as the vector env does for a member it resets next
-        assert batch.step(rngs, active) == -1
+        assert batch.step(rngs, active, threads=threads) == -1
         for b in np.flatnonzero(active):
             singles[b].actions[0] = actions[b]
             assert singles[b].step((twins[b],)) == -1
         if not active[skipped]:
             state = rngs[skipped].bit_generator.state
             assert state == twins[skipped].bit_generator.state
-            batch.reset_member(skipped, rngs[skipped])
+            batch.reset_members([skipped], [rngs[skipped]], threads=threads)
             singles[skipped].reset_member(0, twins[skipped])
         assert_same(batch, singles)
 

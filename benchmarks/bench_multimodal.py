@@ -32,7 +32,8 @@ over minutes (about 25% on a shared 2-core host) lands on both. Reported:
 It measures and asserts nothing; the targets are printed beside the figures.
 
     python benchmarks/bench_multimodal.py [--repeats 3] [--ids LandmarkMCL-v0,...]
-        [--parts single,native,reset,split,glue,tracking,ppo] [--head REF] [--json out.json]
+        [--parts single,native,reset,split,glue,tracking,ppo] [--base REF] [--head REF]
+        [--json out.json]
 """
 
 from __future__ import annotations
@@ -410,6 +411,8 @@ def main() -> None:
     parser.add_argument("--ids", default=",".join(i.split("/")[1] for i in IDS))
     parser.add_argument("--parts", default="single,native,reset,split,glue,tracking,ppo")
     parser.add_argument("--ppo-minutes", type=float, default=3.0)
+    parser.add_argument("--base", default=BASE_COMMIT,
+                        help="the commit to compare with (default: the one before the issue)")
     parser.add_argument("--head", default=None,
                         help="time this commit (a worktree) instead of the checkout's files")
     parser.add_argument("--json", default=None)
@@ -417,7 +420,7 @@ def main() -> None:
     ids = [name if "/" in name else f"ActiveLoc/{name}" for name in args.ids.split(",")]
     parts = args.parts.split(",")
     head = ROOT if args.head is None else checkout(args.head)
-    versions = {"base": checkout(BASE_COMMIT), "head": head}
+    versions = {"base": checkout(args.base), "head": head}
     results: list[dict] = []
 
     def report(row: dict) -> None:

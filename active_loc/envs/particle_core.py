@@ -443,6 +443,7 @@ class ParticleCore(StateViews):
                 fn(*task)
             return
         if self._workers is None or self._workers.workers != threads:
+            self.close()
             self._workers = WorkerThreads(threads)
         seconds = self._seconds
 
@@ -453,6 +454,12 @@ class ParticleCore(StateViews):
 
         tasks.sort(key=lambda task: -seconds[task[0]])
         self._workers.run_tasks(timed, tasks)
+
+    def close(self) -> None:
+        """Stop the worker threads (a later threaded call starts new ones)."""
+        if self._workers is not None:
+            self._workers.close()
+            self._workers = None
 
     def _members(self, active: NDArray[np.bool_] | None) -> list[int]:
         """The indices of the members to step (``active``, or all)."""

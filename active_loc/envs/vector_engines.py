@@ -260,7 +260,8 @@ class BatchedEngine:
         ]
 
     def close(self) -> None:
-        pass
+        if isinstance(self.core, ParticleCore):
+            self.core.close()  # its worker threads
 
     def frame(self, b: int) -> Any:
         """The renderer's frame of member ``b`` (< ``render_envs``)."""

@@ -666,7 +666,7 @@ def _native_speed_up(env_id: str, env_kwargs: dict[str, Any], n_envs: int) -> st
     env = make_env(env_id, **env_kwargs)
     try:
         unwrapped = env.unwrapped
-        # the maze's grid belief is too cheap a step for threads to pay off
+        # MCL: the core's worker threads run two members' filters at once on two cores
         if (isinstance(unwrapped, ActiveLocalizationEnv)
                 and unwrapped.config.belief in THREADED_BELIEFS):
             return "threads" if (os.cpu_count() or 1) >= 2 else None

@@ -233,6 +233,20 @@ class TimedGenerator:
         return timed
 
 
+def _own_seconds_by_part(profiler: Any) -> dict[str, float]:
+    """The own time (s) of the profiled functions of each part of :data:`SPLIT_PARTS`."""
+    import pstats
+
+    own: dict[str, float] = dict.fromkeys(SPLIT_PARTS, 0.0)
+    for (_, _, name), (_, _, tottime, _, _) in pstats.Stats(profiler).stats.items():  # type: ignore[attr-defined]
+        # "<method 'random' of 'numpy.random._generator.Generator' objects>", or a plain name
+        short = name.split("'")[1] if name.startswith("<") and "'" in name else name
+        for part, names in SPLIT_PARTS.items():
+            if short in names:
+                own[part] += tottime
+    return own
+
+
 def step_split(env_id: str, steps: int, kwargs: dict) -> dict:
     """Microseconds per step in the draws (:class:`TimedGenerator`), in each part of
     :data:`SPLIT_PARTS` (the functions' own time under cProfile; the kernels are single calls,
@@ -240,7 +254,6 @@ def step_split(env_id: str, steps: int, kwargs: dict) -> dict:
     which the profiler does inflate: an upper bound); ``step`` is the wall time per step of
     the same ``steps`` random steps (resets included) without the profiler."""
     import cProfile
-    import pstats
 
     import gymnasium as gym
 
@@ -261,14 +274,7 @@ def step_split(env_id: str, steps: int, kwargs: dict) -> dict:
             env.reset()
     profiler.disable()
     profiled = time.perf_counter() - start
-    stats = pstats.Stats(profiler).stats  # type: ignore[attr-defined]
-    own: dict[str, float] = dict.fromkeys(SPLIT_PARTS, 0.0)
-    for (_, _, name), (_, _, tottime, _, _) in stats.items():
-        # "<method 'random' of 'numpy.random._generator.Generator' objects>", or a plain name
-        short = name.split("'")[1] if name.startswith("<") and "'" in name else name
-        for part, names in SPLIT_PARTS.items():
-            if short in names:
-                own[part] += tottime
+    own = _own_seconds_by_part(profiler)
     env.close()
     split = {"draws": 1e6 * timed.seconds / steps}
     split.update({part: 1e6 * t / steps for part, t in own.items()})
@@ -286,7 +292,6 @@ def vector_glue(env_id: str, n: int, calls: int, kwargs: dict) -> dict:
     :data:`SPLIT_PARTS`, divided by ``calls * n`` (an upper bound, as in :func:`step_split`);
     ``sub-env step`` is the unprofiled wall time of the same run per sub-env step."""
     import cProfile
-    import pstats
 
     import gymnasium as gym
     import numpy as np
@@ -323,12 +328,7 @@ def vector_glue(env_id: str, n: int, calls: int, kwargs: dict) -> dict:
         envs.step(actions[t])
     profiler.disable()
     profiled = time.perf_counter() - start
-    parts = {name for names in SPLIT_PARTS.values() for name in names}
-    inside = 0.0
-    for (_, _, name), (_, _, tottime, _, _) in pstats.Stats(profiler).stats.items():  # type: ignore[attr-defined]
-        short = name.split("'")[1] if name.startswith("<") and "'" in name else name
-        if short in parts:
-            inside += tottime
+    inside = sum(_own_seconds_by_part(profiler).values())
     envs.close()
     steps = calls * n
     glue = max(0.0, profiled - inside - clock[0])

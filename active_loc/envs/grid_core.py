@@ -186,31 +186,15 @@ class GridCore(ParticleCore):
 
     # -- step ----------------------------------------------------------------------------------
 
-    def step(
-        self,
-        rngs: Sequence[np.random.Generator],
-        active: NDArray[np.bool_] | None = None,
-        threads: int | None = None,
-    ) -> int:
-        """Advance the members with the actions in :attr:`actions` ``(B, 2)``: each member's
-        world, then every belief in one call of each grid kernel, then each member's metrics.
-
-        Args:
-            rngs: the Generator of each member.
-            active: ``(B,)`` which members to advance; None: all. (The others are about to
-                be reset: their beliefs are predicted and corrected with stale values, never
-                their Generators touched.)
-            threads: numba threads for the grid kernels (1: their serial twins); None: this
-                thread's setting. The result does not depend on it.
-
-        Returns:
-            -1, or the index of a member whose action is not finite (nothing advanced then).
-        """
-        members = self._members(active)
-        bad = self._first_bad_action(members)
-        if bad >= 0:
-            return bad
-        controls = self._controls(members)
+    def _step_members(
+        self, members: list[int], controls: NDArray[np.float64],
+        rngs: Sequence[np.random.Generator], threads: int | None,
+    ) -> None:
+        """One step of ``members`` with their ``controls`` ``(B, 2)``: each member's world,
+        then every belief in one call of each grid kernel on ``threads`` numba threads (1:
+        their serial twins; None: this thread's setting), then each member's metrics. The
+        members not stepped are about to be reset: their beliefs are predicted and corrected
+        with stale values, never their Generators touched."""
         collided = np.zeros(self.batch_size, dtype=np.bool_)
         kidnapped_now = np.zeros(self.batch_size, dtype=np.bool_)
         for b in members:
@@ -221,20 +205,18 @@ class GridCore(ParticleCore):
         with thread_count(threads):
             self._filter_step(members, controls, rngs)
             assert self.grid_belief is not None
-            summaries = self._summaries(self.grid_belief, members, None)
+            summaries = self._summaries(self.grid_belief, members, members)
         for b, summary in zip(members, summaries, strict=True):
             self._finish(b, *summary, collided=bool(collided[b]),
                          kidnapped_now=bool(kidnapped_now[b]), first=False)
-        return -1
 
     def reset_members(
         self, rows: Sequence[int], rngs: Sequence[np.random.Generator],
         threads: int | None = None,
     ) -> None:
-        """:meth:`reset_member` of each member in ``rows``, in turn (the members share the
-        batch's belief arrays)."""
-        for b, rng in zip(rows, rngs, strict=True):
-            self.reset_member(b, rng)
+        """:meth:`reset_member` of each member in ``rows``, in turn whatever ``threads`` says:
+        the members share the batch's belief arrays."""
+        super().reset_members(rows, rngs, threads=None)
 
     # -- Algorithm 1 ---------------------------------------------------------------------------
 
@@ -276,23 +258,23 @@ class GridCore(ParticleCore):
         read one member, not the batch)."""
         member = self.member_belief(b)
         assert member is not None
-        return self._summaries(member, [0], b)[0]
+        return self._summaries(member, [0], [b])[0]
 
-    def _summaries(self, belief: GridBelief, members: list[int], b: int | None
+    def _summaries(self, belief: GridBelief, rows: list[int], members: list[int]
                    ) -> list[BeliefSummary]:
-        """Summaries of ``belief``'s ``members`` (of core member ``b`` when the belief is a
-        one-member copy, else the core's members themselves): mean, covariance (cells' own
-        spread included), entropy, its log det, the ``8 x 8`` histogram of the x-y marginal."""
+        """Summaries of ``belief``'s ``rows``, which hold the core's ``members`` (aligned;
+        the same indices unless the belief is a copy): mean, covariance (cells' own spread
+        included), entropy, its log det, the ``8 x 8`` histogram of the x-y marginal."""
         mean, cov = belief.moments()
         entropy = belief.entropy()
         marginal = belief.marginal_xy()
         cells = HISTOGRAM_CELLS
         out = []
-        for m in members:
-            sign, logdet = np.linalg.slogdet(cov[m])
-            bins = self._data(m if b is None else b).hist_bins
+        for row, b in zip(rows, members, strict=True):
+            sign, logdet = np.linalg.slogdet(cov[row])
+            bins = self._data(b).hist_bins
             assert bins is not None
-            hist = np.bincount(bins, weights=marginal[m].ravel(), minlength=cells * cells)
-            out.append(BeliefSummary(mean[m], cov[m], float(entropy[m]),
+            hist = np.bincount(bins, weights=marginal[row].ravel(), minlength=cells * cells)
+            out.append(BeliefSummary(mean[row], cov[row], float(entropy[row]),
                                      float(logdet) if sign > 0 else -np.inf, hist))
         return out

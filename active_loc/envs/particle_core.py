@@ -410,9 +410,8 @@ class ParticleCore(StateViews):
             rngs: the Generator of each member.
             active: ``(B,)`` which members to advance; None: all. (The others are about to
                 be reset: their Generators are not touched.)
-            threads: how many members step at once, each on a worker thread and the
-                kernels' serial twins; None or 1: one after another in this thread. The
-                result does not depend on it.
+            threads: the threads that step the members (see :meth:`_step_members`); None
+                or 1: this thread alone. The result does not depend on it.
 
         Returns:
             -1, or the index of a member whose action is not finite (nothing advanced then).
@@ -421,10 +420,18 @@ class ParticleCore(StateViews):
         bad = self._first_bad_action(members)
         if bad >= 0:
             return bad
-        controls = self._controls(members)
+        self._step_members(members, self._controls(members), rngs, threads)
+        return -1
+
+    def _step_members(
+        self, members: list[int], controls: NDArray[np.float64],
+        rngs: Sequence[np.random.Generator], threads: int | None,
+    ) -> None:
+        """One step of each of ``members`` with its commanded ``controls[b]`` ``(V, omega)``:
+        ``threads`` members at once, each on a worker thread and the kernels' serial
+        twins; None or 1: one after another in this thread."""
         tasks = [(b, controls[b], rngs[b]) for b in members]
         self._run(self._step_member, tasks, threads)
-        return -1
 
     def reset_members(
         self, rows: Sequence[int], rngs: Sequence[np.random.Generator],

@@ -136,6 +136,43 @@ def vector_rate(env_id: str, n: int, calls: int, repeats: int, kwargs: dict,
     return {"steps_per_s": calls * n / best}
 
 
+def single_same_work_rate(env_id: str, n: int, calls: int, repeats: int, kwargs: dict
+                          ) -> dict:
+    """Best-of-``repeats`` steps per second of one env doing what :func:`vector_rate` has its
+    ``n`` sub-envs do: episode ``i`` reset with seed ``i``, then sub-env ``i``'s ``calls``
+    actions, an ended episode reset in place of the next action (gymnasium's next-step
+    autoreset). The native env's speed-up over a single env is the ratio of the two: the
+    same steps, where :func:`single_rate`'s long run spends more of them on converged
+    beliefs than the first ``calls`` steps of n episodes do."""
+    import gymnasium as gym
+    import numpy as np
+
+    env = gym.make(env_id, **kwargs)
+    single = env.action_space
+    actions = np.array(_actions(single, calls * n, 1)).reshape(calls, n, *single.shape)
+
+    def run(count: int) -> float:
+        start = time.perf_counter()
+        for i in range(n):
+            env.reset(seed=i)
+            ended = False
+            for t in range(count):
+                if ended:
+                    env.reset()
+                    ended = False
+                    continue
+                action = actions[t, i]
+                _, _, terminated, truncated, _ = env.step(
+                    int(action) if action.ndim == 0 else action)
+                ended = terminated or truncated
+        return time.perf_counter() - start
+
+    run(min(2, calls))
+    best = min(run(calls) for _ in range(repeats))
+    env.close()
+    return {"steps_per_s": calls * n / best}
+
+
 #: LandmarkMCL-v0 tracking: a Gaussian start the filter converges from in a few steps, KLD
 #: sampling then holding it at about min_particles = 500 particles
 TRACKING = {"initial_belief": "gaussian", "terminate_when_localized": False}
@@ -361,7 +398,8 @@ def worker(request: dict) -> dict:
     import active_loc  # noqa: F401  (registers the ids)
 
     kind = request.pop("kind")
-    return {"single": single_rate, "vector": vector_rate, "reset": reset_cost,
+    return {"single": single_rate, "single_same_work": single_same_work_rate,
+            "vector": vector_rate, "reset": reset_cost,
             "split": step_split, "glue": vector_glue, "ppo": ppo_split,
             "tracking": tracking_rate}[kind](**request)
 
@@ -454,6 +492,14 @@ def main() -> None:
                 request = {"kind": "vector", "env_id": env_id, "n": n, "calls": calls,
                            "repeats": args.repeats, "kwargs": {}}
                 compare(env_id, f"native n={n}", request, {**request, "sync": True})
+                native = results[-1]
+                compare(env_id, f"single, the steps of native n={n}",
+                        {**request, "kind": "single_same_work"})
+                same = results[-1]
+                if "steps_per_s" in native["head"] and "steps_per_s" in same["head"]:
+                    report({"id": env_id, "case": f"native n={n} / single, the same steps",
+                            "head": native["head"]["steps_per_s"]
+                            / same["head"]["steps_per_s"]})
         if "reset" in parts and not maze:
             request = {"kind": "reset", "env_id": env_id, "resets": args.resets,
                        "repeats": args.repeats, "kwargs": {}}

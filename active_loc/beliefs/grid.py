@@ -50,7 +50,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import ndimage
 
-from active_loc.beliefs.grid_motion import fractional_kernels, noise_in_cells, unicycle_shifts
+from active_loc.beliefs.grid_motion import (
+    checked_fractional_kernels,
+    noise_in_cells,
+    unicycle_shifts,
+)
 from active_loc.maps.occupancy import FREE, OccupancyGrid
 from active_loc.parallel import parallel_twin, pick
 
@@ -992,7 +996,8 @@ class GridBelief:
         std = np.asarray(noise_std, dtype=np.float64)
         if std.shape != (3,) or not np.all(np.isfinite(std)) or np.any(std < 0.0):
             raise ValueError(f"noise_std must be 3 finite numbers >= 0, got {noise_std!r}")
-        move, move_w, turns, turn_w = fractional_kernels(sh, tr, std)
+        move, move_w, turns, turn_w = checked_fractional_kernels(
+            np.ascontiguousarray(sh), np.ascontiguousarray(tr), std)
         # translate with the heading before the turn, then turn (blocked or not)
         pick(translate_kernel, translate_kernel_parallel)(
             self._prob, self._free, self.clearance, move, move_w, self._scratch

@@ -200,9 +200,20 @@ def fractional_kernels(
         raise ValueError(f"noise_std must be 3 finite numbers >= 0, got {noise_std!r}")
     if not (np.all(np.isfinite(sh)) and np.all(np.isfinite(tr))):
         raise ValueError("shift and turn must be finite")
-    sx, sy, st = (float(v) for v in std)
-    move, move_w = translation_kernel_arrays(sh, sx, sy, float(tol), _margin(sx), _margin(sy))
-    turns, turn_w = turn_kernel_arrays(tr, st, float(tol), _margin(st))
+    return checked_fractional_kernels(sh, tr, std, tol)
+
+
+def checked_fractional_kernels(
+    shift: NDArray[np.float64], turn: NDArray[np.float64], noise_std: NDArray[np.float64],
+    tol: float = WEIGHT_TOL,
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
+    """:func:`fractional_kernels` of inputs its caller has checked: C-contiguous float64
+    ``shift`` ``(B, H, 2)`` and ``turn`` ``(B,)``, finite, and ``noise_std`` ``(3,)`` finite
+    and >= 0."""
+    sx, sy, st = (float(v) for v in noise_std)
+    move, move_w = translation_kernel_arrays(shift, sx, sy, float(tol), _margin(sx),
+                                             _margin(sy))
+    turns, turn_w = turn_kernel_arrays(turn, st, float(tol), _margin(st))
     return move, move_w, turns, turn_w
 
 

@@ -239,15 +239,15 @@ class GridCore(ParticleCore):
                 cols, rows, headings = data.lattice
                 lattice_field_log_likelihood(
                     self.lidar, ranges, headings, cols, rows, belief.free[b],
-                    data.map_resolution, data.lattice_table, out=log_lik[b],
+                    data.map_resolution, data.lattice_table, out=log_lik[b], scale=exponent,
                 )
             else:  # beam model, or beam skipping: the particle filter's scoring, pose by pose
                 assert data.poses is not None
                 flat = log_lik[b].reshape(-1, belief.n_headings)
                 flat[data.free_index] = self._scan_log_likelihood(
                     b, ranges, data.poses).reshape(-1, belief.n_headings)
-            if exponent != 1.0:
-                log_lik[b] *= exponent  # -inf stays -inf
+                if exponent != 1.0:
+                    log_lik[b] *= exponent  # -inf stays -inf
         # the members not stepped are reset next: their likelihoods are stale, but finite
         belief.update_log(log_lik)
 

@@ -234,6 +234,7 @@ class PlannerView:
             full = lattice_field_log_likelihood(
                 self.sensor, z, 2.0 * np.pi * np.arange(nh) / nh, (np.arange(nx) + 0.5) * ratio,
                 (np.arange(ny) + 0.5) * ratio, free, self.map.resolution, table,
+                scale=self.likelihood_exponent,
             )
         else:
             free_poses = belief.cell_poses()[free]  # (F, H, 3)
@@ -242,8 +243,8 @@ class PlannerView:
                 self.map.distance_field()
             )
             full = np.full((nx, ny, nh), -np.inf)
-            full[free] = log_lik.reshape(free_poses.shape[:2])
-        belief.update_log(self.likelihood_exponent * full)
+            full[free] = self.likelihood_exponent * log_lik.reshape(free_poses.shape[:2])
+        belief.update_log(full)
 
 
 def _pick(weights: NDArray[np.float64], rng: np.random.Generator) -> int:

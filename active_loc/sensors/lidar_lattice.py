@@ -52,9 +52,11 @@ def lattice_field_kernel(
     table: NDArray,
     inv_resolution: float,
     max_range: float,
+    scale: float,
     out: NDArray,
 ) -> None:
-    """Likelihood-field log-likelihood of scan ``z`` ``(M,)`` (m) at every lattice pose.
+    """Likelihood-field log-likelihood of scan ``z`` ``(M,)`` (m) at every lattice pose, times
+    ``scale``.
 
     The end point of a beam from cell ``(ix, iy)`` lands in map cell
     ``(floor(col_base[ix] + ex), floor(row_base[iy] + ey))`` with ``(ex, ey)`` the beam's
@@ -72,6 +74,7 @@ def lattice_field_kernel(
             off-map value (:func:`padded_table`).
         inv_resolution: 1 / the map's resolution (1/m).
         max_range: the sensor's maximum range (m).
+        scale: the factor of every log-likelihood (a filter's exponent; > 0).
         out: ``(X, Y, H)`` log-likelihoods (overwritten).
     """
     nx_map = table.shape[0] - 2
@@ -104,7 +107,7 @@ def lattice_field_kernel(
                     acc[i, k] += column[rows[k]]
         for i in range(n_x):
             for k in range(n_y):
-                out[i, k, h] = acc[i, k] if free[i, k] else -np.inf
+                out[i, k, h] = acc[i, k] * scale if free[i, k] else -np.inf
 
 
 lattice_field_kernel_parallel = parallel_twin(lattice_field_kernel)
@@ -121,13 +124,15 @@ def lattice_field_log_likelihood(
     table: NDArray,
     out: NDArray | None = None,
     beams: NDArray | None = None,
+    scale: float = 1.0,
 ) -> NDArray[np.float64]:
     """The likelihood-field log-likelihood ``(X, Y, H)`` of scan ``z`` ``(M,)`` at the lattice
     of columns ``col_base`` ``(X,)``, rows ``row_base`` ``(Y,)`` (map grid coordinates) and
     ``headings`` ``(H,)`` (rad, map grid frame); ``-inf`` where ``free`` ``(X, Y)`` is False.
     ``table`` is :func:`padded_table` of the sensor's :meth:`~LidarSensor.log_table` on a map
-    of ``resolution`` m; ``beams`` (indices) scores a subset of the beams. Inputs are trusted
-    (the caller built them)."""
+    of ``resolution`` m; ``beams`` (indices) scores a subset of the beams; ``scale`` (> 0)
+    multiplies every value (a tempered filter's exponent, applied here rather than in a pass
+    of its own). Inputs are trusted (the caller built them)."""
     if out is None:
         out = np.empty((col_base.shape[0], row_base.shape[0], headings.shape[0]))
     angles = sensor.beam_angles
@@ -135,7 +140,7 @@ def lattice_field_log_likelihood(
         z, angles = np.ascontiguousarray(z[beams]), np.ascontiguousarray(angles[beams])
     pick(lattice_field_kernel, lattice_field_kernel_parallel)(
         z, angles, headings, col_base, row_base, free, table, 1.0 / resolution,
-        sensor.max_range, out,
+        sensor.max_range, float(scale), out,
     )
     return out
 

@@ -56,11 +56,13 @@ from stable_baselines3.common.utils import set_random_seed
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
 import active_loc
+from active_loc.agents.registry import make_agent
 from active_loc.agents.sb3 import ALGORITHMS, CONFIG_FILE, MODEL_FILE, algorithm_class
 from active_loc.envs.action_repeat import ActionRepeat
 from active_loc.envs.localization_env import ActiveLocalizationEnv
 from active_loc.envs.registration import ENTRY_POINT, MAZE_ID
 from active_loc.envs.vector_engines import batched_core
+from active_loc.imitation import ImitationRound, dagger
 from active_loc.integrations.sb3 import make_native_vec_env
 from active_loc.integrations.timing import VecEnvTimer
 from active_loc.policies import PooledBeliefCNN, SmallCNN
@@ -69,6 +71,10 @@ Algo = Literal["ppo", "a2c", "dqn", "sac", "recurrent_ppo"]
 
 #: the eval env's seed is the training seed plus this (its episodes differ from training's)
 EVAL_SEED_OFFSET = 1_000_000
+#: the imitation rollouts' seeds are the training seed plus this (and the round)
+IMITATION_SEED_OFFSET = 2_000_000
+#: the imitation's log, one row per DAgger round (in --out)
+IMITATION_LOG = "imitation.csv"
 
 #: per algorithm, the hyperparameters it takes and their defaults (a ``TrainArgs`` field left
 #: at None takes the value here; setting a field the algorithm does not take is an error)
@@ -159,6 +165,20 @@ class TrainArgs:
     """Stop training once this much wall-clock time has passed (None: no limit)."""
     verbose: int = 0
     """Verbosity of the algorithm (0, 1, 2); evaluations are printed in any case."""
+
+    # a warm start by imitation (ppo and a2c): DAgger from a planner, before the RL run
+    imitate: str | None = None
+    """An agent spec to imitate first (e.g. horizon): rounds of DAgger (active_loc.imitation)
+    fit the policy to its actions and the value head to the rollouts' returns; their time
+    counts in --time-limit-minutes, and imitation.csv logs each round."""
+    imitate_rounds: int = 4
+    """DAgger rounds: the planner drives the first, the policy the others."""
+    imitate_steps: int = 50_000
+    """States labelled by the planner per round."""
+    imitate_epochs: int = 4
+    """Passes over all the labels so far after each round."""
+    imitate_learning_rate: float = 1e-3
+    """Adam's step size for the imitation fits."""
 
     # hyperparameters; None: the algorithm's default (ALGO_DEFAULTS in active_loc/train.py)
     learning_rate: float | None = None
@@ -364,11 +384,30 @@ def check_args(args: TrainArgs) -> None:
         ("net_arch", args.net_arch is None or all(n >= 1 for n in args.net_arch), "sizes >= 1"),
         ("buffer_size", args.buffer_size is None or args.buffer_size >= 1, ">= 1"),
         ("learning_starts", args.learning_starts is None or args.learning_starts >= 0, ">= 0"),
+        ("imitate_rounds", args.imitate_rounds >= 1, ">= 1"),
+        ("imitate_steps", args.imitate_steps >= 1, ">= 1"),
+        ("imitate_epochs", args.imitate_epochs >= 1, ">= 1"),
+        ("imitate_learning_rate",
+         math.isfinite(args.imitate_learning_rate) and args.imitate_learning_rate > 0,
+         "a finite number > 0"),
     ]
     for field, ok, allowed in checks:
         if not ok:
             raise TrainConfigError(f"{field} must be {allowed}, got {getattr(args, field)!r}")
+    if args.imitate is not None:
+        if args.algo not in IMITATING_ALGOS:
+            raise TrainConfigError(
+                f"imitate needs an actor-critic policy ({', '.join(IMITATING_ALGOS)}), got "
+                f"algo {args.algo}")
+        if args.action_repeat > 1:
+            raise TrainConfigError(
+                f"imitate labels every env step, so it cannot run with action_repeat "
+                f"{args.action_repeat}")
     check_device(args.device)
+
+
+#: the algorithms whose policies :func:`active_loc.imitation.fit` can fit
+IMITATING_ALGOS = ("ppo", "a2c")
 
 
 def check_device(device: str) -> None:
@@ -720,6 +759,7 @@ def train(args: TrainArgs) -> Path:
     env_kwargs = resolve_env_kwargs(args.env, parse_env_kwargs(args.env_kwargs), args.algo)
     observation_space, action_space, info_keywords = probe_env(args.env, env_kwargs, args.seed)
     check_algorithm(args.algo, args.env, env_kwargs, action_space)
+    check_imitation(args, env_kwargs, observation_space)
     policy_kind, policy, policy_kwargs = resolve_policy(args, observation_space)
     hyper = resolve_hyperparameters(args)
     algo_cls = algorithm_class(args.algo)
@@ -786,11 +826,16 @@ def train(args: TrainArgs) -> Path:
         time_limit = TimeLimitCallback(args.time_limit_minutes)
         callbacks.append(time_limit)
 
+    start = time.perf_counter()
+    imitation = None
+    if args.imitate is not None:
+        imitation = warm_start(model, args, env_kwargs, out, start)
+        if time_limit is not None:  # the imitation's time counts in the limit
+            time_limit.seconds = max(1e-3, time_limit.seconds - (time.perf_counter() - start))
     print(
         f"training {algo_cls.__name__} ({policy}) on {args.env} {env_kwargs} for "
         f"{args.total_steps} steps with {args.n_envs} envs -> {out}"
     )
-    start = time.perf_counter()
     try:
         model.learn(
             total_timesteps=args.total_steps, callback=CallbackList(callbacks),
@@ -815,6 +860,8 @@ def train(args: TrainArgs) -> Path:
         "env_time": timer.split(seconds),
         "eval": evaluation,
     }
+    if imitation is not None:
+        config["result"]["imitation"] = [asdict(row) for row in imitation]
     config_file.write_text(json.dumps(config, indent=2) + "\n")
 
     reason = " (stopped by the time limit)" if stopped else ""
@@ -837,6 +884,47 @@ def train(args: TrainArgs) -> Path:
     print(f"learning curve: {curve}")
     print(f"tensorboard: tensorboard --logdir {out / 'tb'}")
     return out
+
+
+def check_imitation(args: TrainArgs, env_kwargs: dict[str, Any],
+                    observation_space: gym.Space) -> None:
+    """``args.imitate`` names an agent that can drive the env, whose observation the fit
+    can batch (a Box)."""
+    if args.imitate is None:
+        return
+    if not isinstance(observation_space, gym.spaces.Box):
+        raise TrainConfigError(
+            f"imitate needs a Box observation, got {type(observation_space).__name__}")
+    probe = make_env(args.env, **env_kwargs)
+    try:
+        make_agent(args.imitate, probe, seed=args.seed)
+    except ValueError as error:
+        raise TrainConfigError(f"imitate {args.imitate!r}: {error}") from None
+    finally:
+        probe.close()
+
+
+def warm_start(model: Any, args: TrainArgs, env_kwargs: dict[str, Any], out: Path,
+               start: float) -> list[ImitationRound]:
+    """DAgger of ``model``'s policy from the agent ``args.imitate`` (:func:`dagger`), on
+    envs like the training envs seeded from ``args.seed + IMITATION_SEED_OFFSET``; no round
+    starts after the time limit (counted from ``start``)."""
+    spec = args.imitate
+    assert spec is not None
+    deadline = None
+    if args.time_limit_minutes is not None:
+        deadline = start + 60.0 * args.time_limit_minutes
+    print(f"imitating {spec}: {args.imitate_rounds} rounds of {args.imitate_steps} states")
+    rounds = dagger(
+        model.policy, lambda: make_env(args.env, **env_kwargs),
+        lambda env: make_agent(spec, env, seed=args.seed), args.imitate_rounds,
+        args.imitate_steps, args.imitate_epochs, args.imitate_learning_rate, args.gamma,
+        args.seed + IMITATION_SEED_OFFSET, out / IMITATION_LOG, deadline,
+    )
+    for row in rounds:
+        print(f"  round {row.round} ({row.driver} drove): agreement {row.agreement:.3f}, "
+              f"nll {row.nll:.4f}, value mse {row.value_mse:.4f}, {row.seconds:.0f} s")
+    return rounds
 
 
 def main(argv: Sequence[str] | None = None, prog: str | None = None) -> Path:

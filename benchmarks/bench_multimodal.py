@@ -18,6 +18,9 @@ over minutes (about 25% on a shared 2-core host) lands on both. Reported:
   ``SyncVectorEnv`` on the same seeds and actions: n single envs stepped in turn, the single
   env's rate on the vector env's workload (the first steps of n episodes at once, which
   differs from one env's run of consecutive episodes);
+* ``single, the steps of native n``: one env doing exactly the native env's steps, one
+  episode after another (:func:`single_same_work_rate`), and the native env's ratio to it:
+  its speed-up over a single env on the same work;
 * ``reset``: milliseconds per ``reset()`` of a single env, with a new map every episode and
   (head only, ``map_pool``) with a pool of maps;
 * ``split``: where a head step's time goes (:func:`step_split`);

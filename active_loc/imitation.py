@@ -41,26 +41,26 @@ class Rollout:
         returns: ``(N,)`` the discounted return from each state on (rewards of the executed
             actions; an episode cut by the end of the round counts its rewards so far).
         agreement: the fraction of the states where the executed policy's action was the
-            planner's (NaN in a round the planner drove).
+            planner's (None in a round the planner drove).
         episodes: episodes begun.
     """
 
     observations: NDArray
     labels: NDArray
     returns: NDArray[np.float64]
-    agreement: float
+    agreement: float | None
     episodes: int
 
 
 @dataclass(frozen=True)
 class ImitationRound:
-    """One row of ``imitation.csv``."""
+    """One row of ``imitation.csv`` (``agreement`` empty, None, when the planner drove)."""
 
     round: int
     driver: str
     steps: int
     labels_total: int
-    agreement: float
+    agreement: float | None
     episodes: int
     nll: float
     value_mse: float
@@ -108,7 +108,7 @@ def rollout(
     return Rollout(
         observations=np.asarray(observations), labels=np.asarray(labels),
         returns=discounted_returns(np.asarray(rewards), np.asarray(ends), gamma),
-        agreement=float("nan") if act is None else agree / steps, episodes=episodes,
+        agreement=None if act is None else agree / steps, episodes=episodes,
     )
 
 

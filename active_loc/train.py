@@ -922,8 +922,9 @@ def warm_start(model: Any, args: TrainArgs, env_kwargs: dict[str, Any], out: Pat
         args.seed + IMITATION_SEED_OFFSET, out / IMITATION_LOG, deadline,
     )
     for row in rounds:
-        print(f"  round {row.round} ({row.driver} drove): agreement {row.agreement:.3f}, "
-              f"nll {row.nll:.4f}, value mse {row.value_mse:.4f}, {row.seconds:.0f} s")
+        agreement = "" if row.agreement is None else f"agreement {row.agreement:.3f}, "
+        print(f"  round {row.round} ({row.driver} drove): {agreement}nll {row.nll:.4f}, "
+              f"value mse {row.value_mse:.4f}, {row.seconds:.0f} s")
     return rounds
 
 

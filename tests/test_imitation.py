@@ -25,6 +25,10 @@ def _maze() -> gym.Env:
     return gym.make("ActiveLoc/Maze-v0", **MAZE)
 
 
+def _refuse(constant: str) -> None:
+    raise AssertionError(f"config.json holds {constant}, which is not JSON")
+
+
 def test_discounted_returns_restart_after_each_episode_end() -> None:
     rewards = np.array([1.0, 1.0, 1.0, 2.0, 4.0])
     ends = np.array([False, False, True, False, False])
@@ -37,7 +41,7 @@ def test_a_planner_rollout_labels_every_state_with_the_action_it_executed() -> N
     planner = make_agent("horizon", env, seed=0)
     run = rollout(env, planner, None, 40, seed=3, gamma=0.99)
     assert run.observations.shape == (40, *env.observation_space.shape)
-    assert run.labels.shape == (40,) and np.isnan(run.agreement)
+    assert run.labels.shape == (40,) and run.agreement is None
     assert run.episodes == 3  # 15 steps an episode: 40 steps begin three
     # the same seed, the same planner: the same rollout
     again = rollout(_maze(), make_agent("horizon", _maze(), seed=0), None, 40, 3, 0.99)
@@ -87,8 +91,11 @@ def test_train_with_imitate_logs_each_round_and_records_them(tmp_path: Path) -> 
     assert [row["driver"] for row in rows] == ["planner", "policy"]
     assert [int(row["labels_total"]) for row in rows] == [40, 80]
     assert 0.0 <= float(rows[1]["agreement"]) <= 1.0
-    config = json.loads((out / "config.json").read_text())
+    assert rows[0]["agreement"] == ""  # the planner drove
+    # strict JSON (no NaN), as other tools read it
+    config = json.loads((out / "config.json").read_text(), parse_constant=_refuse)
     assert [row["round"] for row in config["result"]["imitation"]] == [0, 1]
+    assert config["result"]["imitation"][0]["agreement"] is None
 
 
 @pytest.mark.parametrize(("overrides", "message"), [

@@ -75,6 +75,8 @@ EVAL_SEED_OFFSET = 1_000_000
 IMITATION_SEED_OFFSET = 2_000_000
 #: the imitation's log, one row per DAgger round (in --out)
 IMITATION_LOG = "imitation.csv"
+#: the algorithms whose policies :func:`active_loc.imitation.fit` can fit
+IMITATING_ALGOS = ("ppo", "a2c")
 
 #: per algorithm, the hyperparameters it takes and their defaults (a ``TrainArgs`` field left
 #: at None takes the value here; setting a field the algorithm does not take is an error)
@@ -404,10 +406,6 @@ def check_args(args: TrainArgs) -> None:
                 f"imitate labels every env step, so it cannot run with action_repeat "
                 f"{args.action_repeat}")
     check_device(args.device)
-
-
-#: the algorithms whose policies :func:`active_loc.imitation.fit` can fit
-IMITATING_ALGOS = ("ppo", "a2c")
 
 
 def check_device(device: str) -> None:
@@ -836,6 +834,7 @@ def train(args: TrainArgs) -> Path:
         f"training {algo_cls.__name__} ({policy}) on {args.env} {env_kwargs} for "
         f"{args.total_steps} steps with {args.n_envs} envs -> {out}"
     )
+    learn_start = time.perf_counter()
     try:
         model.learn(
             total_timesteps=args.total_steps, callback=CallbackList(callbacks),
@@ -844,7 +843,8 @@ def train(args: TrainArgs) -> Path:
     finally:
         vec_env.close()
         eval_env.close()
-    seconds = time.perf_counter() - start
+    seconds = time.perf_counter() - start  # the imitation included
+    learn_seconds = time.perf_counter() - learn_start
     model_file = out / MODEL_FILE
     model.save(model_file)
     kwargs_text = f" {json.dumps(env_kwargs)}" if env_kwargs else ""
@@ -857,7 +857,7 @@ def train(args: TrainArgs) -> Path:
         "timesteps": int(model.num_timesteps),
         "wall_time_s": round(seconds, 2),
         "stopped_by_time_limit": stopped,
-        "env_time": timer.split(seconds),
+        "env_time": timer.split(learn_seconds),  # the RL run's
         "eval": evaluation,
     }
     if imitation is not None:
@@ -867,7 +867,7 @@ def train(args: TrainArgs) -> Path:
     reason = " (stopped by the time limit)" if stopped else ""
     held = f" of up to {args.action_repeat} env steps each" if args.action_repeat > 1 else ""
     print(f"trained {model.num_timesteps} steps{held} in {seconds / 60:.1f} min{reason}; "
-          f"{100 * timer.env_seconds / seconds:.1f}% of it in the training envs")
+          f"{100 * timer.env_seconds / learn_seconds:.1f}% of the RL run in the training envs")
     if evaluation is not None:
         line = (
             f"evaluation ({evaluation['episodes']} episodes, {evaluation['evaluations']} times): "

@@ -89,6 +89,14 @@ def _actions(space: Any, count: int, seed: int) -> list:
     return list(rng.uniform(space.low, space.high, (count, *space.shape)).astype(space.dtype))
 
 
+def _batched_actions(space: Any, calls: int, n: int) -> Any:
+    """``(calls, n, *shape)`` random actions of a single env's ``space``: call t's action of
+    sub-env i at ``[t, i]`` (the same for the vector env and one env doing its steps)."""
+    import numpy as np
+
+    return np.array(_actions(space, calls * n, 1)).reshape(calls, n, *space.shape)
+
+
 def _run_episodes(env: Any, seed: int, actions: list) -> float:
     """Seconds to step ``env`` (reset with ``seed``) through ``actions``, resetting ended
     episodes inside the timed loop."""
@@ -119,12 +127,10 @@ def vector_rate(env_id: str, n: int, calls: int, repeats: int, kwargs: dict,
     """Best-of-``repeats`` env-steps per second of the native vector env (or, with ``sync``,
     gymnasium's SyncVectorEnv) over ``calls`` batched random steps."""
     import gymnasium as gym
-    import numpy as np
 
     mode = "sync" if sync else "vector_entry_point"
     envs = gym.make_vec(env_id, n, vectorization_mode=mode, **kwargs)
-    single = envs.single_action_space
-    actions = np.array(_actions(single, calls * n, 1)).reshape(calls, n, *single.shape)
+    actions = _batched_actions(envs.single_action_space, calls, n)
 
     def run(seed: int, count: int) -> float:
         envs.reset(seed=seed)
@@ -148,11 +154,9 @@ def single_same_work_rate(env_id: str, n: int, calls: int, repeats: int, kwargs:
     same steps, where :func:`single_rate`'s long run spends more of them on converged
     beliefs than the first ``calls`` steps of n episodes do."""
     import gymnasium as gym
-    import numpy as np
 
     env = gym.make(env_id, **kwargs)
-    single = env.action_space
-    actions = np.array(_actions(single, calls * n, 1)).reshape(calls, n, *single.shape)
+    actions = _batched_actions(env.action_space, calls, n)
 
     def run(count: int) -> float:
         start = time.perf_counter()
@@ -471,7 +475,8 @@ def main() -> None:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)
             Path(args.json).write_text(json.dumps(results, indent=1))
 
-    def compare(env_id: str, label: str, request: dict, head_only: dict | None = None) -> None:
+    def compare(env_id: str, label: str, request: dict, head_only: dict | None = None
+                ) -> dict:
         row: dict[str, Any] = {"id": env_id, "case": label}
         for name, source in versions.items():
             row[name] = measure(source, dict(request))
@@ -482,6 +487,7 @@ def main() -> None:
         if key in old and key in new:
             row["ratio"] = new[key] / old[key] if key == "steps_per_s" else old[key] / new[key]
         report(row)
+        return row
 
     for env_id in ids:
         maze = env_id.endswith("Maze-v0")
@@ -494,11 +500,9 @@ def main() -> None:
                 calls = max(2, (args.maze_calls if maze else args.calls) * 16 // n)
                 request = {"kind": "vector", "env_id": env_id, "n": n, "calls": calls,
                            "repeats": args.repeats, "kwargs": {}}
-                compare(env_id, f"native n={n}", request, {**request, "sync": True})
-                native = results[-1]
-                compare(env_id, f"single, the steps of native n={n}",
-                        {**request, "kind": "single_same_work"})
-                same = results[-1]
+                native = compare(env_id, f"native n={n}", request, {**request, "sync": True})
+                same = compare(env_id, f"single, the steps of native n={n}",
+                               {**request, "kind": "single_same_work"})
                 if "steps_per_s" in native["head"] and "steps_per_s" in same["head"]:
                     report({"id": env_id, "case": f"native n={n} / single, the same steps",
                             "head": native["head"]["steps_per_s"]

@@ -6,6 +6,10 @@ float32 in [0, 1] with n = 7, 15 or 21, so it gets :class:`SmallCNN`, used with
 ``normalize_images=False``::
 
     policy_kwargs = dict(features_extractor_class=SmallCNN, normalize_images=False)
+
+The ``Dict`` observation of the MCL and grid ids' ``observation="image"`` (the belief as an
+image over the map, and the observation vector) gets :class:`BeliefImageExtractor` with
+``MultiInputPolicy``.
 """
 
 from __future__ import annotations
@@ -111,3 +115,74 @@ class PooledBeliefCNN(BaseFeaturesExtractor):
         maps = self.cnn(observations)  # (B, C, H, W)
         pooled = torch.cat([maps.mean(dim=(2, 3)), maps.amax(dim=(2, 3))], dim=1)
         return self.linear(pooled)
+
+
+class BeliefImageExtractor(BaseFeaturesExtractor):
+    """For the ``Dict`` observation of ``observation="image"``
+    (:mod:`active_loc.envs.belief_image`): a CNN on the belief image beside an MLP layer on
+    the observation vector, their features concatenated.
+
+    The image's belief channels are divided by their per-sample maximum first (a belief
+    spread over the map puts about 1e-4 in a cell, a converged one about 1). The map is laid
+    out in the image, so where the mass lies matters: the convolutions (3 x 3, the second and
+    third of stride 2) are pooled to a ``4 x 4`` grid and flattened, keeping the layout
+    coarsely, not averaged away.
+
+    Args:
+        observation_space: a ``Dict`` with ``"image"`` ``(C, R, R)`` and ``"vector"`` ``(D,)``.
+        features_dim: the size of the image's feature vector (the output adds
+            ``vector_dim``).
+        channels: the output channels of the convolutions, one per layer.
+        vector_dim: the size of the vector's feature layer.
+        belief_channels: how many leading image channels hold belief mass; None: all but the
+            last (the map).
+    """
+
+    def __init__(
+        self,
+        observation_space: gym.spaces.Dict,
+        features_dim: int = 256,
+        channels: tuple[int, ...] = (32, 64, 64),
+        vector_dim: int = 128,
+        belief_channels: int | None = None,
+    ) -> None:
+        spaces = getattr(observation_space, "spaces", {})
+        image, vector = spaces.get("image"), spaces.get("vector")
+        if not (isinstance(image, gym.spaces.Box) and len(image.shape) == 3
+                and isinstance(vector, gym.spaces.Box) and len(vector.shape) == 1):
+            raise ValueError(
+                "BeliefImageExtractor needs a Dict observation space with an 'image' Box "
+                f"(C, H, W) and a 'vector' Box (D,), got {observation_space}"
+            )
+        n_channels = image.shape[0]
+        belief_channels = n_channels - 1 if belief_channels is None else belief_channels
+        if features_dim < 1 or vector_dim < 1 or not channels or not (
+            0 <= belief_channels <= n_channels
+        ):
+            raise ValueError(
+                f"features_dim and vector_dim must be >= 1, channels non-empty and "
+                f"belief_channels in [0, {n_channels}], got {features_dim}, {vector_dim}, "
+                f"{channels}, {belief_channels}"
+            )
+        super().__init__(observation_space, features_dim + vector_dim)
+        self.belief_channels = belief_channels
+        layers: list[nn.Module] = []
+        in_channels = n_channels
+        for i, out_channels in enumerate(channels):
+            stride = 1 if i == 0 else 2
+            layers += [nn.Conv2d(in_channels, out_channels, 3, stride=stride, padding=1),
+                       nn.ReLU()]
+            in_channels = out_channels
+        self.cnn = nn.Sequential(*layers, nn.AdaptiveAvgPool2d(4), nn.Flatten())
+        self.image_linear = nn.Sequential(nn.Linear(16 * in_channels, features_dim), nn.ReLU())
+        self.vector_linear = nn.Sequential(nn.Linear(vector.shape[0], vector_dim), nn.ReLU())
+
+    def forward(self, observations: dict[str, torch.Tensor]) -> torch.Tensor:
+        image = observations["image"]
+        k = self.belief_channels
+        if k:
+            belief = image[:, :k]
+            peak = belief.amax(dim=(1, 2, 3), keepdim=True).clamp_min(1e-12)
+            image = torch.cat([belief / peak, image[:, k:]], dim=1)
+        features = self.image_linear(self.cnn(image))
+        return torch.cat([features, self.vector_linear(observations["vector"])], dim=1)

@@ -65,7 +65,7 @@ from active_loc.envs.vector_engines import batched_core
 from active_loc.imitation import ImitationRound, dagger
 from active_loc.integrations.sb3 import make_native_vec_env
 from active_loc.integrations.timing import VecEnvTimer
-from active_loc.policies import PooledBeliefCNN, SmallCNN
+from active_loc.policies import BeliefImageExtractor, PooledBeliefCNN, SmallCNN
 
 Algo = Literal["ppo", "a2c", "dqn", "sac", "recurrent_ppo"]
 
@@ -137,7 +137,8 @@ class TrainArgs:
     seed: int = 0
     """Seed of everything: training env i gets seed + i, the eval env seed + 1000000."""
     policy: Literal["auto", "mlp", "cnn"] = "auto"
-    """auto: cnn (active_loc.policies.SmallCNN) for (C, H, W) image observations, else mlp."""
+    """auto: cnn for image observations ((C, H, W): active_loc.policies.SmallCNN; the Dict of
+    observation="image": BeliefImageExtractor with MultiInputPolicy), else mlp."""
     out: Path | None = None
     """Output folder; None: runs/<env name>-<algo>-<seed>, e.g. runs/Maze-v0-ppo-0."""
     eval_freq: int = 10_000
@@ -307,20 +308,39 @@ def is_image_space(space: gym.Space) -> bool:
     return isinstance(space, gym.spaces.Box) and len(space.shape) == 3
 
 
+def is_belief_image_space(space: gym.Space) -> bool:
+    """The ``Dict`` of ``observation="image"``: a belief image and the observation vector."""
+    return (isinstance(space, gym.spaces.Dict) and set(space.spaces) == {"image", "vector"}
+            and is_image_space(space["image"]))
+
+
 def resolve_policy(
     args: TrainArgs, observation_space: gym.Space
 ) -> tuple[str, str, dict[str, Any]]:
-    """``("mlp" | "cnn", the policy class name, policy_kwargs)``."""
-    image = is_image_space(observation_space)
+    """``("mlp" | "cnn", the policy class name, policy_kwargs)``: a ``Dict`` observation
+    takes SB3's ``MultiInputPolicy``, with :class:`~active_loc.policies.BeliefImageExtractor`
+    when it is a belief image (``cnn``) or SB3's flattening extractor (``mlp``)."""
+    multi = is_belief_image_space(observation_space)
+    image = multi or is_image_space(observation_space)
     kind = ("cnn" if image else "mlp") if args.policy == "auto" else args.policy
     if kind == "cnn" and not image:
         raise TrainConfigError(
-            f"policy 'cnn' needs an image observation space (C, H, W), but {args.env} has "
-            f"{observation_space}; use --policy mlp (or auto)"
+            f"policy 'cnn' needs an image observation space (C, H, W) or a belief image "
+            f"(observation='image'), but {args.env} has {observation_space}; use --policy mlp "
+            "(or auto)"
         )
     net_arch = args.net_arch if args.net_arch is not None else ALGO_DEFAULTS[args.algo]["net_arch"]
     policy_kwargs: dict[str, Any] = {"net_arch": list(net_arch)}
-    if kind == "cnn":
+    if kind == "cnn" and multi:
+        policy_kwargs.update(
+            features_extractor_class=BeliefImageExtractor,
+            features_extractor_kwargs={
+                "features_dim": args.features_dim,
+                "channels": tuple(args.cnn_channels),
+            },
+            normalize_images=False,
+        )
+    elif kind == "cnn":
         policy_kwargs.update(
             features_extractor_class=SmallCNN if args.cnn == "flat" else PooledBeliefCNN,
             features_extractor_kwargs={
@@ -329,7 +349,7 @@ def resolve_policy(
             },
             normalize_images=False,
         )
-    base = "Cnn" if kind == "cnn" else "Mlp"
+    base = "MultiInput" if multi else "Cnn" if kind == "cnn" else "Mlp"
     name = f"{base}LstmPolicy" if args.algo == "recurrent_ppo" else f"{base}Policy"
     return kind, name, policy_kwargs
 

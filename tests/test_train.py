@@ -237,6 +237,45 @@ def test_pooled_belief_cnn_takes_any_maze_size_and_the_belief_up_to_scale() -> N
         PooledBeliefCNN(gym.spaces.Box(0.0, 1.0, (5, 7, 7)), belief_channels=6)
 
 
+def test_belief_image_extractor_reads_the_image_and_the_vector() -> None:
+    import torch
+
+    from active_loc.policies import BeliefImageExtractor
+
+    torch.manual_seed(0)
+    space = gym.make("ActiveLoc/GridMCL-v0", observation="image", image_size=16).observation_space
+    extractor = BeliefImageExtractor(space, features_dim=24, channels=(8, 16), vector_dim=8)
+    assert extractor.features_dim == 32
+    rng = np.random.default_rng(0)
+    obs = {key: torch.as_tensor(rng.random((3, *sub.shape)), dtype=torch.float32)
+           for key, sub in space.spaces.items()}
+    features = extractor(obs)
+    assert features.shape == (3, 32)
+    scaled = {**obs, "image": obs["image"].clone()}
+    scaled["image"][:, :-1] *= 1e-3  # the same belief, spread 1000 times thinner
+    assert torch.allclose(extractor(scaled), features, atol=1e-5)
+    moved = {**obs, "vector": obs["vector"] + 1.0}
+    assert not torch.allclose(extractor(moved), features)  # the vector is read too
+    with pytest.raises(ValueError, match="'image' Box"):
+        BeliefImageExtractor(gym.spaces.Box(0.0, 1.0, (5, 7, 7)))
+
+
+def test_ppo_run_on_the_belief_image(tmp_path: Path) -> None:
+    args = TrainArgs(env="ActiveLoc/GridMCL-v0", algo="ppo", total_steps=128, n_steps=64,
+                     vec_env="native", out=tmp_path, cnn_channels=(4, 8), features_dim=16,
+                     env_kwargs=json.dumps({"observation": "image", "image_size": 12,
+                                            "action_type": "discrete"}), **TINY)
+    out = train(args)
+    config = json.loads((out / "config.json").read_text())
+    assert config["resolved"]["policy"] == "MultiInputPolicy"
+    assert "BeliefImageExtractor" in config["resolved"]["policy_kwargs"]["features_extractor_class"]
+    agent = SB3Agent.load(out)
+    env = gym.make("ActiveLoc/GridMCL-v0", observation="image", image_size=12,
+                   action_type="discrete")
+    obs, _ = env.reset(seed=0)
+    assert env.action_space.contains(agent.act(obs, env.unwrapped.planner_view()))
+
+
 def test_auto_vec_env_is_native_where_it_is_faster() -> None:
     from active_loc.train import resolve_vec_env
 

@@ -9,6 +9,7 @@ import numpy as np
 
 from active_loc.agents.planning import primitive_action
 from active_loc.envs.actions import PRIMITIVE_NAMES
+from active_loc.envs.belief_image import observation_vector
 from active_loc.sensors.lidar import LidarSensor
 
 _FORWARD = PRIMITIVE_NAMES.index("forward")
@@ -27,7 +28,7 @@ class WandererAgent:
 
 class WallFollowerAgent:
     """Keeps a wall on its right, reading only the lidar scan (the last ``n_beams`` entries of
-    the observation, ranges over the maximum range): turn left when something is closer than
+    the observation vector, ranges over the maximum range): turn left when something is closer than
     ``front_clearance`` ahead, bear right when the wall on the right is farther than
     ``right_band[1]``, left when nearer than ``right_band[0]``, else forward. For grid maps
     with a lidar."""
@@ -41,7 +42,8 @@ class WallFollowerAgent:
         sensor = view.sensor
         if not isinstance(sensor, LidarSensor):
             raise ValueError("WallFollowerAgent needs a lidar (a grid env)")
-        ranges = np.asarray(observation, dtype=np.float64)[-sensor.n_beams:] * sensor.max_range
+        scan = np.asarray(observation_vector(observation), dtype=np.float64)[-sensor.n_beams:]
+        ranges = scan * sensor.max_range
         angles = sensor.beam_angles
         ahead = ranges[np.abs(angles) <= np.deg2rad(15.0)]
         right = ranges[np.abs(angles + np.pi / 2) <= np.deg2rad(20.0)]

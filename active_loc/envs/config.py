@@ -40,7 +40,7 @@ INITIAL_BELIEFS = ("gaussian", "uniform")
 LIDAR_MODELS = ("likelihood_field", "beam")
 RESAMPLING = ("systematic", "stratified")
 ACTION_TYPES = ("continuous", "discrete")
-OBSERVATIONS = ("belief",)
+OBSERVATIONS = ("belief", "image")
 REWARDS = ("info_gain", "neg_entropy", "logdet", "trace")
 STARTS = ("random", "fixed", "unseen")
 _CHOICES = {
@@ -56,6 +56,8 @@ MAX_LANDMARKS = 100_000  # max_landmarks
 MAX_BEAMS = 10_000  # n_beams
 MAX_GRID_HEADINGS = 3600  # grid_headings
 MAX_PEOPLE = 1000  # dynamic_obstacles count
+MIN_IMAGE_SIZE, MAX_IMAGE_SIZE = 4, 256  # image_size (cells per side)
+MAX_IMAGE_HEADINGS = 36  # image_headings
 MIN_GRID_CELL_M, MAX_GRID_CELL_M = 0.01, 100.0  # grid_cell_size (m)
 GENERATOR_RESOLUTION_M = 0.1  # the map generators' cell side
 # bytes per unit of the memory estimate: a particle (pose, weight, draws, resampling and
@@ -168,7 +170,13 @@ class LocalizationConfig:
 
     # --- agent interface -----------------------------------------------------------------
     action_type: str = "continuous"  # "continuous": Box(-1, 1, (2,)); "discrete": primitives
+    # "belief": a vector (the belief's summary, an 8 x 8 histogram of its mass, the scan);
+    # "image" (MCL and grid beliefs): a Dict of that vector and the belief as an image over the
+    # map, image_headings heading channels and a map channel of image_size x image_size cells
+    # (active_loc.envs.belief_image)
     observation: str = "belief"
+    image_size: int = 32
+    image_headings: int = 8
     reward: str = "info_gain"  # "info_gain", "neg_entropy", "logdet" or "trace"
     step_cost: float = 0.0  # subtracted every step (>= 0)
     collision_penalty: float = 1.0  # subtracted on a blocked move (>= 0)
@@ -293,6 +301,11 @@ class LocalizationConfig:
         if self.proposal == "mixture" and self.belief != "mcl":
             raise ValueError(f"proposal='mixture' is mixture MCL: it needs belief='mcl', got "
                              f"belief={self.belief!r}")
+        if self.observation == "image" and self.belief == "ekf":
+            raise ValueError("observation='image' pictures a particle or grid belief: it needs "
+                             "belief='mcl' or 'grid', got belief='ekf'")
+        check_integer("image_size", self.image_size, MIN_IMAGE_SIZE, MAX_IMAGE_SIZE)
+        check_integer("image_headings", self.image_headings, 1, MAX_IMAGE_HEADINGS)
         if self.kidnap and self.belief != "mcl":
             raise ValueError("kidnap=True needs belief='mcl' (the EKF cannot recover from it)")
 

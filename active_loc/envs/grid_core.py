@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from active_loc.beliefs.grid import GridBelief, coarse_free_mask
+from active_loc.envs.belief_image import grid_image_index, pooled_grid_image
 from active_loc.envs.config import LocalizationConfig
 from active_loc.envs.particle_core import (
     HISTOGRAM_CELLS,
@@ -72,6 +73,9 @@ class GridMapData(MapData):
             the beam model).
         hist_bins: ``(X Y,)`` the ``8 x 8`` observation bin of each cell.
         map_resolution: the map's cell side (m).
+        image_cells, image_channels: ``(X Y,)`` the image cell of each belief cell and
+            ``(H,)`` the image channel of each heading bin (``observation="image"``; see
+            :func:`~active_loc.envs.belief_image.grid_image_index`).
     """
 
     template: GridBelief | None = None
@@ -81,6 +85,8 @@ class GridMapData(MapData):
     lattice_table: NDArray[np.float64] | None = None
     hist_bins: NDArray[np.int64] | None = None
     map_resolution: float = 1.0
+    image_cells: NDArray[np.int64] | None = None
+    image_channels: NDArray[np.int64] | None = None
 
 
 class GridCore(ParticleCore):
@@ -147,6 +153,11 @@ class GridCore(ParticleCore):
                      cells - 1)
         iy = np.clip(((centres[:, 1] - y_min) / (y_max - y_min) * cells).astype(np.int64), 0,
                      cells - 1)
+        image_cells = image_channels = None
+        if cfg.observation == "image":
+            image_cells, image_channels = grid_image_index(
+                poses[:, :, 0, 0], poses[:, :, 0, 1], poses[0, 0, :, 2], lmap.bounds,
+                cfg.image_size, cfg.image_headings)
         return GridMapData(
             **vars(data),
             template=template,
@@ -157,6 +168,8 @@ class GridCore(ParticleCore):
             lattice_table=lattice_table,
             hist_bins=iy * cells + ix,
             map_resolution=lmap.resolution,
+            image_cells=image_cells,
+            image_channels=image_channels,
         )
 
     def _bind_map(self, b: int, episode: Episode) -> None:
@@ -252,6 +265,14 @@ class GridCore(ParticleCore):
         belief.update_log(log_lik)
 
     # -- metrics and observation ---------------------------------------------------------------
+
+    def _write_image(self, b: int) -> None:
+        """Member ``b``'s belief channels of its image: its cells' mass pooled."""
+        data = self._data(b)
+        assert self.grid_belief is not None and self.image is not None
+        assert data.image_cells is not None and data.image_channels is not None
+        pooled_grid_image(self.grid_belief.prob[b], data.image_cells, data.image_channels,
+                          self.image[b])
 
     def _reset_summary(self, b: int) -> BeliefSummary:
         """The summary of member ``b``'s new belief, from a one-member copy (the kernels then

@@ -41,6 +41,7 @@ from active_loc.beliefs.ekf import EKFBelief, ekf_predict, ekf_update
 from active_loc.beliefs.ekf_filterpy import FilterpyEKFBelief
 from active_loc.beliefs.entropy import LOG_2PIE_3, det3
 from active_loc.envs.actions import ControlLimits
+from active_loc.envs.belief_image import IMAGE_KEY, VECTOR_KEY
 from active_loc.envs.config import LocalizationConfig, check_start_pose
 from active_loc.envs.metrics import belief_metrics
 from active_loc.envs.observations import belief_observation_size, write_belief_observation
@@ -552,6 +553,18 @@ class StateViews:
     read them every step, and a record view costs about a microsecond to build."""
 
     state: NDArray[np.float64]
+    obs: NDArray[np.float32]
+    #: ``(B, C, R, R)`` the belief images of ``observation="image"`` (None: no image)
+    image: NDArray[np.float32] | None = None
+
+    @property
+    def observations(self) -> NDArray[np.float32] | dict[str, NDArray[np.float32]]:
+        """The members' observations (views): ``obs`` ``(B, D)``, or with an image the dict
+        of :mod:`active_loc.envs.belief_image` (``"image"`` ``(B, C, R, R)``, ``"vector"``
+        ``(B, D)``)."""
+        if self.image is None:
+            return self.obs
+        return {IMAGE_KEY: self.image, VECTOR_KEY: self.obs}
 
     @property
     def rows(self) -> NDArray[np.void]:

@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from active_loc.envs.actions import action_space, check_action
 from active_loc.envs.association_core import A_ACCURACY, AssociationCore
+from active_loc.envs.belief_image import copy_observation, image_observation_space
 from active_loc.envs.config import LocalizationConfig
 from active_loc.envs.grid_core import GridCore
 from active_loc.envs.landmark_core import LandmarkCore
@@ -136,9 +137,7 @@ class ActiveLocalizationEnv(gym.Env):
         else:
             self.core = LandmarkCore(self.config, batch_size=1)
         self.action_space = action_space(self.config.action_type)
-        self.observation_space = gym.spaces.Box(
-            -1.0, 1.0, (self.core.obs.shape[1],), dtype=np.float32
-        )
+        self.observation_space = observation_space(self.config, self.core.obs.shape[1])
         self._continuous = self.config.action_type == "continuous"
         # config values read on every step, as plain attributes
         self._reward = reward_settings(self.config)
@@ -166,7 +165,7 @@ class ActiveLocalizationEnv(gym.Env):
         info = self._info(self.core.outcome(0))
         if self.render_mode == "human":
             self.render()
-        return self.core.obs[0].copy(), info
+        return copy_observation(self.core.observations, 0), info
 
     def step(
         self, action: Any
@@ -189,7 +188,7 @@ class ActiveLocalizationEnv(gym.Env):
             if self.render_mode == "human":
                 self.render()
         terminated = self._terminate_when_localized and outcome.terminal
-        return core.obs[0].copy(), reward, terminated, False, info
+        return copy_observation(core.observations, 0), reward, terminated, False, info
 
     def render(self) -> NDArray[np.uint8] | None:
         if self.render_mode is None:
@@ -268,6 +267,15 @@ class ActiveLocalizationEnv(gym.Env):
         return build_frame(
             self.core, 0, self._true_path, self._belief_path, self._steps, title
         )
+
+
+def observation_space(config: LocalizationConfig, vector_size: int) -> gym.spaces.Space:
+    """The observation space of a config whose observation vector has ``vector_size``
+    entries: that vector's ``Box``, or with ``observation="image"`` the ``Dict`` of
+    :mod:`active_loc.envs.belief_image`."""
+    if config.observation == "image":
+        return image_observation_space(config.image_size, config.image_headings, vector_size)
+    return gym.spaces.Box(-1.0, 1.0, (vector_size,), dtype=np.float32)
 
 
 def reward_settings(config: LocalizationConfig) -> RewardSettings:

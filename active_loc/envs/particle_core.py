@@ -34,6 +34,7 @@ from active_loc.beliefs.lidar_dual import LidarDualProposal, update_with_scan
 from active_loc.beliefs.mcl import FreeSpace, MCLBelief
 from active_loc.beliefs.particle_stats import ENTROPY_BINS
 from active_loc.envs.actions import ControlLimits
+from active_loc.envs.belief_image import image_shape, map_channel, particle_image
 from active_loc.envs.config import LocalizationConfig, check_start_pose, memory_parts
 from active_loc.envs.crowd import Crowd
 from active_loc.envs.field_checks import check_memory
@@ -122,6 +123,8 @@ class MapData:
         log_table: the likelihood field's per-cell log-probabilities (likelihood field model).
         range_table: the beam model's precomputed casts (``lidar_range_bins > 0``).
         dual: mixture MCL's scan lattice (``proposal="mixture"`` on grids).
+        image_map: ``(R, R)`` the map channel of ``observation="image"``
+            (:func:`~active_loc.envs.belief_image.map_channel`; None without an image).
     """
 
     free: FreeSpace
@@ -130,6 +133,7 @@ class MapData:
     log_table: NDArray[np.float64] | None = None
     range_table: RangeTable | None = None
     dual: LidarDualProposal | None = None
+    image_map: NDArray[np.float32] | None = None
 
 
 @dataclass(eq=False)
@@ -195,6 +199,9 @@ class ParticleCore(StateViews):
         self.episodes: list[Episode | None] = [None] * b
         self.state = np.zeros((b, STATE_SIZE))
         self.obs = np.zeros((b, particle_observation_size(config)), dtype=np.float32)
+        if config.observation == "image":
+            shape = image_shape(config.image_size, config.image_headings)
+            self.image = np.zeros((b, *shape), dtype=np.float32)
         self.actions = np.zeros((b, 2))
         self.z = np.zeros((b, n, 2))
         self.visible = np.zeros((b, n), dtype=np.bool_)
@@ -350,7 +357,11 @@ class ParticleCore(StateViews):
         """What the core derives from a map (:class:`MapData`): the filter's free space and,
         on grids, the ray-casting arrays, the distance field and the lidar model's table
         (likelihood field) or precomputed casts (beam model with ``lidar_range_bins``), and
-        for mixture MCL the scan lattice of its dual proposal."""
+        for mixture MCL the scan lattice of its dual proposal; the map channel of an image
+        observation."""
+        image_map = None
+        if cfg.observation == "image":
+            image_map = map_channel(lmap, lmap.bounds, cfg.image_size)
         if isinstance(lmap, OccupancyGrid):
             lidar = build_lidar(cfg)
             grid_arrays = lmap.kernel_arrays()
@@ -365,17 +376,19 @@ class ParticleCore(StateViews):
                 field = log_table if log_table is not None else lidar.log_table(distance)
                 dual = LidarDualProposal.build(lmap, lidar, field)
             return MapData(FreeSpace.from_grid(lmap.values, lmap.resolution, lmap.origin),
-                           grid_arrays, distance, log_table, range_table, dual)
+                           grid_arrays, distance, log_table, range_table, dual, image_map)
         if lmap.n_landmarks > cfg.max_landmarks:
             raise ValueError(
                 f"the map has {lmap.n_landmarks} landmarks but max_landmarks="
                 f"{cfg.max_landmarks}; raise max_landmarks"
             )
-        return MapData(FreeSpace.from_box(*lmap.bounds))
+        return MapData(FreeSpace.from_box(*lmap.bounds), image_map=image_map)
 
     def _bind_map(self, b: int, episode: Episode) -> None:
         """Member ``b`` has a new map: its per-member copies of the map's arrays."""
         lmap = episode.map
+        if self.image is not None:
+            self.image[b, -1] = episode.data.image_map
         if isinstance(lmap, LandmarkMap):
             self.landmarks[b] = 0.0
             self.landmarks[b, : lmap.n_landmarks] = lmap.positions
@@ -631,6 +644,15 @@ class ParticleCore(StateViews):
                 mean, self.z[b], self.visible[b], self.landmarks[b], lmap.n_landmarks,
                 self.models.sensor.kind, self.models.scale, out[start:],
             )
+        if self.image is not None:
+            self._write_image(b)
+
+    def _write_image(self, b: int) -> None:
+        """Member ``b``'s belief channels of its image: the particles' weights binned."""
+        belief = self.beliefs[b]
+        assert belief is not None and self.image is not None
+        particle_image(belief.particles, belief.summary().weights, self.rows[b]["bounds"],
+                       self.image[b])
 
 
 class BeliefSummary(NamedTuple):

@@ -138,9 +138,10 @@ class BatchedEngine:
         ]
 
     @property
-    def obs(self) -> NDArray[np.float32]:
-        """``(n, D)`` the current observations (a view)."""
-        return self.core.obs
+    def obs(self) -> NDArray[np.float32] | dict[str, NDArray[np.float32]]:
+        """The current observations (views): ``(n, D)``, or the dict of an image
+        observation (:attr:`~active_loc.envs.landmark_core.StateViews.observations`)."""
+        return self.core.observations
 
     def reset_member(self, b: int, seed: int | None, options: dict[str, Any] | None) -> None:
         """New episode of member ``b``; its Generator is (re)seeded as ``Env.reset`` does."""

@@ -33,6 +33,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
+from active_loc.envs.belief_image import copy_observation, copy_observations
 from active_loc.envs.field_checks import check_integer
 from active_loc.envs.localization_env import ActiveLocalizationEnv
 from active_loc.envs.maze_env import MazeEnv
@@ -231,7 +232,7 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         self._elapsed[mask] = 0
         self._needs_reset = self._needs_reset & ~mask
         self._has_reset = True
-        return self.engine.obs.copy(), self.engine.infos(mask)
+        return copy_observations(self.engine.obs), self.engine.infos(mask)
 
     def step(
         self, actions: Any
@@ -243,7 +244,7 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         if self.autoreset_mode == AutoresetMode.SAME_STEP and ended.any():
             final_obs = np.full(n, None, dtype=object)
             for b in np.flatnonzero(ended):
-                final_obs[b] = engine.obs[b].copy()
+                final_obs[b] = copy_observation(engine.obs, b)
             final_info = engine.infos(ended)
             self._reset_ended(np.flatnonzero(ended).tolist())
             infos = engine.infos(self._all)
@@ -251,7 +252,7 @@ class ActiveLocalizationVectorEnv(VectorEnv):
                          final_info=final_info, _final_info=ended.copy())
         else:
             infos = engine.infos(self._all)
-        return engine.obs.copy(), rewards, terminated, truncated, infos
+        return copy_observations(engine.obs), rewards, terminated, truncated, infos
 
     def step_with_info_dicts(
         self, actions: Any
@@ -277,10 +278,10 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         ended = np.flatnonzero(terminated | truncated).tolist()
         if ended:
             for b in ended:
-                infos[b]["terminal_observation"] = engine.obs[b].copy()
+                infos[b]["terminal_observation"] = copy_observation(engine.obs, b)
             self._reset_ended(ended)
             reset_infos = dict(zip(ended, engine.info_dicts(ended), strict=True))
-        return engine.obs.copy(), rewards, terminated, truncated, infos, reset_infos
+        return copy_observations(engine.obs), rewards, terminated, truncated, infos, reset_infos
 
     def render(self) -> NDArray[np.uint8] | None:
         """The first sub-env's frame, or the first ``render_envs`` frames tiled in a grid."""

@@ -27,6 +27,8 @@ max_range. Mean and covariance are those of the histogram's piecewise-constant d
 (:meth:`GridBelief.moments <active_loc.beliefs.grid.GridBelief.moments>`: circular heading
 mean, the cells' own spread included), the density whose entropy is reported, so the
 localized test (largest position std, heading std) is about the same density as the reward.
+The image of ``observation="image"`` pools each cell's mass into the image cell that holds its
+centre and each heading bin into the image channel that holds its heading.
 """
 
 from __future__ import annotations

@@ -15,6 +15,8 @@ read both the same way.
 Observation (float32, in [-1, 1]): the belief header of :mod:`active_loc.envs.observations`,
 then an ``8 x 8`` histogram of the particle mass over the map (a picture of a multi-modal
 belief), then the scan: landmark slots on landmark maps, ranges / max_range for the lidar.
+With ``observation="image"`` the core also keeps :attr:`image`, the belief as an image over
+the map (:mod:`active_loc.envs.belief_image`).
 """
 
 from __future__ import annotations

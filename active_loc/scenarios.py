@@ -92,7 +92,9 @@ LANDMARK_GLOBAL: MappingProxyType[str, Any] = MappingProxyType(
 #: independent). Mixture MCL draws a fifth of every update's particles from the scan's lattice
 #: (plain MCL needed 50000 particles), and recovers with such poses where AMCL injects random
 #: ones. The recovery averages run faster than AMCL's
-#: defaults (0.001, 0.1), which are sized for hours of operation, not episodes of 300 steps.
+#: defaults (0.001, 0.1), which are sized for hours of operation, not episodes of 300 steps;
+#: and they inject only once the short-term average falls below half the long-term one, so
+#: that the dips of a belief that is right (a turn in an open room) do not keep scattering it.
 GRID_GLOBAL: MappingProxyType[str, Any] = MappingProxyType(
     {
         "belief": "mcl",
@@ -108,6 +110,7 @@ GRID_GLOBAL: MappingProxyType[str, Any] = MappingProxyType(
         "augmented": True,
         "recovery_alpha_slow": 0.05,
         "recovery_alpha_fast": 0.5,
+        "recovery_threshold": 0.5,
         "fov": 1.5 * math.pi,
         "max_range": 8.0,
         "horizon": 300,

@@ -847,6 +847,10 @@ class MCLBelief:
         alpha_slow, alpha_fast: averaging rates of w_slow and w_fast,
             ``0 < alpha_slow < alpha_fast <= 1`` (AMCL's recovery_alpha_slow/fast would be
             0.001 and 0.1 when on).
+        recovery_threshold: rho in (0, 1]: the injection rate is
+            ``max(0, 1 - w_fast / (rho w_slow))``, so nothing is injected until the short-term
+            average falls below rho times the long-term one (1: augmented MCL's rate, which
+            answers every dip of the evidence).
         kld: KLD sampling at resampling time.
         min_particles: KLD lower bound (ROS AMCL's default 100; Nav2's is 500),
             ``1 <= min_particles <= n_particles``.
@@ -892,6 +896,7 @@ class MCLBelief:
         augmented: bool = False,
         alpha_slow: float = 0.001,
         alpha_fast: float = 0.1,
+        recovery_threshold: float = 1.0,
         kld: bool = False,
         min_particles: int = 100,
         kld_err: float = 0.01,
@@ -925,6 +930,10 @@ class MCLBelief:
         if not (0.0 < alpha_slow < alpha_fast <= 1.0):
             raise ValueError(f"MCLBelief.alpha_slow and alpha_fast must satisfy 0 < alpha_slow < "
                              f"alpha_fast <= 1, got {alpha_slow}, {alpha_fast}")
+        if not (isinstance(recovery_threshold, (int, float))
+                and not isinstance(recovery_threshold, bool) and 0.0 < recovery_threshold <= 1.0):
+            raise ValueError(f"MCLBelief.recovery_threshold must be a number in (0, 1], got "
+                             f"{recovery_threshold!r}")
         n_particles = int(n_particles)
         if kld:
             if isinstance(min_particles, bool) or int(min_particles) != min_particles or not (
@@ -944,6 +953,7 @@ class MCLBelief:
         self.augmented = bool(augmented)
         self.alpha_slow = float(alpha_slow)
         self.alpha_fast = float(alpha_fast)
+        self.recovery_threshold = float(recovery_threshold)
         self.kld = bool(kld)
         self.min_particles = int(min_particles) if kld else n_particles
         self.kld_err = float(kld_err)
@@ -1005,10 +1015,11 @@ class MCLBelief:
 
     @property
     def injection_rate(self) -> float:
-        """``max(0, 1 - w_fast / w_slow)`` of augmented MCL; 0 when augmentation is off."""
+        """``max(0, 1 - w_fast / (rho w_slow))`` of augmented MCL (rho the
+        ``recovery_threshold``); 0 when augmentation is off."""
         if not self.augmented or self._log_w_slow is None or self._log_w_fast is None:
             return 0.0
-        diff = self._log_w_fast - self._log_w_slow
+        diff = self._log_w_fast - self._log_w_slow - math.log(self.recovery_threshold)
         return 0.0 if diff >= 0.0 else -math.expm1(diff)
 
     # --- initialization ----------------------------------------------------------------------

@@ -151,9 +151,11 @@ class LocalizationConfig:
     resample_threshold: float = 0.5  # MCL: resample when ESS < threshold * particles
     augmented: bool = False  # MCL: random-particle injection (augmented MCL, for kidnapping)
     # augmented MCL: smoothing rates of the long- and short-term likelihood averages (AMCL's
-    # recovery_alpha_slow / _fast); injection rate = max(0, 1 - w_fast / w_slow)
+    # recovery_alpha_slow / _fast); injection rate = max(0, 1 - w_fast / (rho w_slow)), rho the
+    # recovery_threshold in (0, 1] (1: augmented MCL's rate; lower: no injection on small dips)
     recovery_alpha_slow: float = 0.001
     recovery_alpha_fast: float = 0.1
+    recovery_threshold: float = 1.0
     kld: bool = False  # MCL: KLD-sampling adaptive particle count
     min_particles: int = 100  # MCL with KLD: the minimum count (AMCL's default)
     # MCL and grid: the power each scan's likelihood is raised to (see MCLBelief); 1 = the
@@ -400,6 +402,8 @@ class LocalizationConfig:
                 "recovery rates must satisfy 0 < recovery_alpha_slow < recovery_alpha_fast <= 1, "
                 f"got {self.recovery_alpha_slow}, {self.recovery_alpha_fast}"
             )
+        if not 0 < self.recovery_threshold <= 1:
+            raise ValueError(f"recovery_threshold must be in (0, 1], got {self.recovery_threshold}")
         if not 0 < self.likelihood_exponent <= 1:
             raise ValueError(
                 f"likelihood_exponent must be in (0, 1], got {self.likelihood_exponent}"

@@ -968,3 +968,27 @@ def test_dense_entropy_grid_gives_the_hash_tables_entropy():
     w = np.array([0.5, 0.5])
     assert np.isnan(dense_binned_entropy(parts, w, dx, dy, dth, origin, acc, touched))
     assert not acc.any()
+
+
+@pytest.mark.parametrize("rho", [1.0, 0.5, 0.2])
+def test_the_recovery_threshold_delays_injection_in_closed_form(rho):
+    """Uniform log-likelihoods c0, then c1 < c0: w_slow and w_fast follow their averaging
+    rates, and the rate is max(0, 1 - w_fast / (rho w_slow))."""
+    slow, fast = 0.05, 0.5
+    b = tracked_belief(augmented=True, alpha_slow=slow, alpha_fast=fast,
+                       recovery_threshold=rho, resample_threshold=0.0)
+    rng = np.random.default_rng(40)
+    c0, c1 = -2.0, -4.0
+    b.update(np.full(400, c0), rng)
+    assert b.injection_rate == 0.0  # both averages start at the first evidence
+    b.update(np.full(400, c1), rng)
+    w_slow = (1 - slow) * math.exp(c0) + slow * math.exp(c1)
+    w_fast = (1 - fast) * math.exp(c0) + fast * math.exp(c1)
+    assert b.injection_rate == pytest.approx(max(0.0, 1.0 - w_fast / (rho * w_slow)))
+    assert (b.injection_rate > 0.0) == (w_fast / w_slow < rho)
+
+
+@pytest.mark.parametrize("rho", [0.0, 1.5, True, "0.5"])
+def test_a_bad_recovery_threshold_is_refused(rho):
+    with pytest.raises(ValueError, match="recovery_threshold"):
+        tracked_belief(augmented=True, recovery_threshold=rho)

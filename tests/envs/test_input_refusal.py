@@ -78,6 +78,9 @@ def test_multi_robot_team_reward_refuses_what_is_only_truthy(value: object) -> N
         (GRID, {"n_beams": 10**12}, "n_beams must be an integer in"),
         (GRID, {"grid_headings": 10**12}, "grid_headings must be an integer in"),
         (LANDMARK, {"max_landmarks": 10**12}, "max_landmarks must be an integer in"),
+        (GRID, {"recovery_threshold": 0.0}, r"recovery_threshold must be in \(0, 1\]"),
+        (GRID, {"recovery_threshold": 2.0}, r"recovery_threshold must be in \(0, 1\]"),
+        (GRID, {"recovery_threshold": "half"}, "recovery_threshold must be"),
     ],
     ids=lambda v: str(v)[:50] if isinstance(v, dict) else None,
 )

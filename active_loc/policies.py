@@ -20,6 +20,16 @@ from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
 
 
+def rescaled_belief(images: torch.Tensor, belief_channels: int) -> torch.Tensor:
+    """Images ``(B, C, H, W)`` with their first ``belief_channels`` channels divided by their
+    per-sample maximum (the others, the map, unchanged; 0: the images as they are)."""
+    if not belief_channels:
+        return images
+    belief = images[:, :belief_channels]
+    peak = belief.amax(dim=(1, 2, 3), keepdim=True).clamp_min(1e-12)
+    return torch.cat([belief / peak, images[:, belief_channels:]], dim=1)
+
+
 class SmallCNN(BaseFeaturesExtractor):
     """Three 3 x 3 convolutions (stride 1, padding 1: the spatial size is kept), then a
     linear layer.
@@ -107,12 +117,7 @@ class PooledBeliefCNN(BaseFeaturesExtractor):
         self.linear = nn.Sequential(nn.Linear(2 * in_channels, features_dim), nn.ReLU())
 
     def forward(self, observations: torch.Tensor) -> torch.Tensor:
-        k = self.belief_channels
-        if k:
-            belief = observations[:, :k]
-            peak = belief.amax(dim=(1, 2, 3), keepdim=True).clamp_min(1e-12)
-            observations = torch.cat([belief / peak, observations[:, k:]], dim=1)
-        maps = self.cnn(observations)  # (B, C, H, W)
+        maps = self.cnn(rescaled_belief(observations, self.belief_channels))  # (B, C, H, W)
         pooled = torch.cat([maps.mean(dim=(2, 3)), maps.amax(dim=(2, 3))], dim=1)
         return self.linear(pooled)
 
@@ -178,11 +183,6 @@ class BeliefImageExtractor(BaseFeaturesExtractor):
         self.vector_linear = nn.Sequential(nn.Linear(vector.shape[0], vector_dim), nn.ReLU())
 
     def forward(self, observations: dict[str, torch.Tensor]) -> torch.Tensor:
-        image = observations["image"]
-        k = self.belief_channels
-        if k:
-            belief = image[:, :k]
-            peak = belief.amax(dim=(1, 2, 3), keepdim=True).clamp_min(1e-12)
-            image = torch.cat([belief / peak, image[:, k:]], dim=1)
+        image = rescaled_belief(observations["image"], self.belief_channels)
         features = self.image_linear(self.cnn(image))
         return torch.cat([features, self.vector_linear(observations["vector"])], dim=1)

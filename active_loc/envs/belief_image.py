@@ -122,14 +122,22 @@ def grid_image_index(
         ``(X Y,)`` the flat image cell ``iy R + ix`` of each grid cell, and ``(Hg,)`` the image
         channel of each heading bin.
     """
-    x_min, y_min, x_max, y_max = bounds
-    ix = np.clip(np.floor((centres_x - x_min) / (x_max - x_min) * size), 0, size - 1)
-    iy = np.clip(np.floor((centres_y - y_min) / (y_max - y_min) * size), 0, size - 1)
-    cells = (iy * size + ix).astype(np.int64).ravel()
+    cells = _flat_cells(np.ravel(centres_x), np.ravel(centres_y), bounds, size)
     wrapped = (np.asarray(headings) + np.pi) % (2.0 * np.pi) - np.pi
-    channel = np.clip(np.floor((wrapped + np.pi) / (2.0 * np.pi) * n_headings), 0,
-                      n_headings - 1).astype(np.int64)
-    return cells, channel
+    return cells, _bins(wrapped, -np.pi, np.pi, n_headings)
+
+
+def _bins(values: NDArray[np.float64], low: float, high: float, n: int) -> NDArray[np.int64]:
+    """The bin of each value among ``n`` equal bins over ``[low, high)``, clamped to the end
+    bins (:func:`_bin`'s rule, over arrays)."""
+    return np.clip(np.floor((values - low) / (high - low) * n), 0, n - 1).astype(np.int64)
+
+
+def _flat_cells(x: NDArray[np.float64], y: NDArray[np.float64], bounds: tuple[float, ...],
+                size: int) -> NDArray[np.int64]:
+    """The flat image cell ``iy R + ix`` of each point ``(x, y)`` (m) over ``bounds``."""
+    x_min, y_min, x_max, y_max = bounds
+    return _bins(y, y_min, y_max, size) * size + _bins(x, x_min, x_max, size)
 
 
 def map_channel(
@@ -138,7 +146,6 @@ def map_channel(
     """``(R, R)`` the image's map channel over ``bounds``: on a grid the share of each image
     cell's map cells that are not free (1 where no map cell falls, as off a yawed map); on a
     landmark map 1 in the cells that hold a landmark, 0 elsewhere."""
-    x_min, y_min, x_max, y_max = bounds
     if isinstance(lmap, LandmarkMap):
         points = np.asarray(lmap.positions, dtype=np.float64).reshape(-1, 2)
         blocked = np.ones(len(points))
@@ -149,9 +156,7 @@ def map_channel(
         points = lmap.cell_to_world(np.stack([ix.ravel(), iy.ravel()], axis=-1))
         blocked = (lmap.values.ravel() != FREE).astype(np.float64)
         total = np.ones(len(points))
-    cx = np.clip(np.floor((points[:, 0] - x_min) / (x_max - x_min) * size), 0, size - 1)
-    cy = np.clip(np.floor((points[:, 1] - y_min) / (y_max - y_min) * size), 0, size - 1)
-    flat = (cy * size + cx).astype(np.int64)
+    flat = _flat_cells(points[:, 0], points[:, 1], bounds, size)
     hits = np.bincount(flat, weights=blocked, minlength=size * size)
     if total is None:
         return np.minimum(hits, 1.0).reshape(size, size).astype(np.float32)

@@ -22,10 +22,9 @@ When the dual poses are weighted by the predicted belief alone (no recovery shar
 where that belief's kernel density is 0 gets no weight, so the draw keeps to the lattice cells
 and heading bins that reach the density's support
 (:class:`~active_loc.beliefs.particle_density.KernelSupport`): ``q`` stays positive wherever
-``p(z | x) bel_bar(x)`` is, and only those poses are scored. Over 1500 steps of the passive
-agent, the share of the lattice's poses scored averaged 0.49 on GridMCL-v0 (under 0.013 in a
-quarter of the steps, while the belief is spread all of it), 0.08 on GridMCLKidnapped-v0
-(median 0.003) and 0.02 on GridMCLDynamic-v0.
+``p(z | x) bel_bar(x)`` is, and only those poses are scored.
+Measured on GridMCL-v0 with the passive agent, the support holds a median 18% of the free
+cells (a mean of 41%).
 """
 
 from __future__ import annotations

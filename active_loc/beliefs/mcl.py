@@ -57,12 +57,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from active_loc.beliefs.dual_proposal import dual_log_density, dual_pairs, sample_dual_poses
-from active_loc.beliefs.particle_density import (
-    KernelSupport,
-    kde_log_density,
-    kde_support,
-    silverman_bandwidth,
-)
+from active_loc.beliefs.particle_density import kde_log_density, silverman_bandwidth
 from active_loc.beliefs.particle_stats import (
     ENTROPY_BINS,
     MAX_DENSE_BINS,
@@ -98,10 +93,8 @@ PROPOSALS = ("motion", "mixture")
 #: the smallest kernel bandwidth (m, m, rad) of the predicted belief's density in mixture MCL
 MIN_KDE_BANDWIDTH = (0.05, 0.05, 0.02)
 
-#: a dual proposal: ``(D, rng, support) -> (poses (D, 3), log q (D,))``
-#: (:meth:`MCLBelief.update_mixture`)
-DualDraw = Callable[[int, np.random.Generator, KernelSupport | None],
-                    tuple[NDArray[np.float64], NDArray[np.float64]]]
+#: a dual proposal: ``(D, rng) -> (poses (D, 3), log q (D,))`` (:meth:`MCLBelief.update_mixture`)
+DualDraw = Callable[[int, np.random.Generator], tuple[NDArray[np.float64], NDArray[np.float64]]]
 
 # lanes of a resampling's stream (active_loc.random_streams): which particle to copy, the
 # stochastic rounding of the injected count, whether KLD's draw injects, and 4 for a pose
@@ -1264,11 +1257,8 @@ class MCLBelief:
         Args:
             log_likelihood: ``(K,)`` the particles' log-likelihoods ``log p(z | x)``
                 (untempered).
-            draw_dual: ``(D, rng, support) -> (poses (D, 3), log q (D,))``: the dual
-                proposal of this scan (``log q = -inf`` for a pose it could not make). With no
-                recovery share, ``support`` is where the predicted belief's density is
-                positive, and a draw may keep to it (the other poses get no weight);
-                otherwise it is None.
+            draw_dual: ``(D, rng) -> (poses (D, 3), log q (D,))``: the dual proposal of this
+                scan (``log q = -inf`` for a pose it could not make).
             score: ``poses (S, 3) -> (S,)``: the same log-likelihood at other poses.
             rng: the env's Generator: one key, then the dual proposal's draws.
         """
@@ -1283,9 +1273,7 @@ class MCLBelief:
         self._summary = None
         self.last_log_evidence = log_ev
         n_dual = max(1, round(self.mixture_share * n))
-        recovery = self.injection_rate  # 0 unless augmented
-        support = kde_support(particles, bandwidth) if recovery == 0.0 else None
-        poses, log_q = draw_dual(n_dual, rng, support)
+        poses, log_q = draw_dual(n_dual, rng)
         valid = np.isfinite(log_q) & self.free_space.is_free(poses)
         log_u = np.full(n_dual, -math.inf)  # dual weights under a uniform prior
         log_b = np.full(n_dual, -math.inf)  # and under the predicted belief
@@ -1293,6 +1281,7 @@ class MCLBelief:
             dual = np.ascontiguousarray(poses[valid])
             log_u[valid] = self.likelihood_exponent * score(dual) - log_q[valid]
             log_b[valid] = log_u[valid] + kde_log_density(particles, prior, bandwidth, dual)
+        recovery = self.injection_rate  # 0 unless augmented
         samples = [  # (normalized log-weights, log total, share)
             (log_w, log_ev, (1.0 - recovery) * (1.0 - self.mixture_share)),
             (log_b, logsumexp(log_b), (1.0 - recovery) * self.mixture_share),
@@ -1347,8 +1336,7 @@ class MCLBelief:
         landmarks = np.asarray(landmarks, dtype=np.float64).reshape(-1, 2)
         pairs = dual_pairs(vis, landmarks.shape[0], known_correspondence)
 
-        def draw(n: int, gen: np.random.Generator,
-                 _support: KernelSupport | None) -> tuple[NDArray, NDArray]:
+        def draw(n: int, gen: np.random.Generator) -> tuple[NDArray, NDArray]:
             poses, made = sample_dual_poses(n, z, landmarks, pairs, sensor.kind,
                                             sensor.noise_cov, gen)
             log_q = np.full(n, -math.inf)

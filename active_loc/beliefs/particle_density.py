@@ -25,7 +25,6 @@ every query reaches most of the set).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -37,8 +36,6 @@ TRUNCATION = 4.0
 GRID_STEP = 1.0
 #: the most grid cells (x cells x y cells x heading cells)
 MAX_CELLS = 1 << 16
-#: the bandwidth's cap per axis: none in x and y, pi in heading (wider is uniform)
-BANDWIDTH_CAP = np.array([np.inf, np.inf, np.pi])
 #: the fewest and the most heading cells
 MIN_HEADING_CELLS = 8
 MAX_HEADING_CELLS = 64
@@ -172,20 +169,27 @@ def _smooth_all(mass: NDArray, taps_x: NDArray, rx: int, taps_y: NDArray, ry: in
 
 
 @numba.njit(cache=True, nogil=True)
-def _kde_grid(particles: NDArray, bandwidth: NDArray) -> tuple[float, float, float, float,
-                                                                 int, int, int, int, int, int]:
-    """The binned grid of a set ``(K, 3)`` and ``bandwidth`` ``(3,)`` (heading at most pi):
-    its first node ``(gx, gy)`` (m), cell sides ``(dx, dy)`` (m), nodes ``(nx, ny, nh)``, and
-    the taps' reach ``(rx, ry, rh)`` (nodes) along x, y and heading."""
+def binned_kde_kernel(
+    particles: NDArray, weights: NDArray, bandwidth: NDArray, queries: NDArray, out: NDArray
+) -> None:
+    """``log bel_bar`` ``(Q,)`` at ``queries`` ``(Q, 3)`` (module docstring); particles
+    ``(K, 3)`` with headings in ``[-pi, pi)``, weights ``(K,)`` summing to 1, ``bandwidth``
+    ``(3,)`` with a heading bandwidth of at most pi.
+
+    The convolved grid is needed only at the 8 nodes around each query: where the queries
+    are few against the grid's cells, only those nodes (and the sums they need) are computed,
+    with the same sums in the same order, so both ways give the same numbers."""
+    k = particles.shape[0]
     x0 = y0 = np.inf
     x1 = y1 = -np.inf
-    for i in range(particles.shape[0]):
+    for i in range(k):
         x0 = min(x0, particles[i, 0])
         x1 = max(x1, particles[i, 0])
         y0 = min(y0, particles[i, 1])
         y1 = max(y1, particles[i, 1])
     nh = min(MAX_HEADING_CELLS,
              max(MIN_HEADING_CELLS, math.floor(2.0 * math.pi / (GRID_STEP * bandwidth[2]))))
+    dh = 2.0 * math.pi / nh
     dx = GRID_STEP * bandwidth[0]
     dy = GRID_STEP * bandwidth[1]
     while True:  # grow the cells until the grid fits
@@ -198,25 +202,9 @@ def _kde_grid(particles: NDArray, bandwidth: NDArray) -> tuple[float, float, flo
         grow = 1.05 * math.sqrt(nx * ny * nh / MAX_CELLS)
         dx *= grow
         dy *= grow
-    rh = math.ceil(TRUNCATION * bandwidth[2] / (2.0 * math.pi / nh))
-    return x0 - rx * dx, y0 - ry * dy, dx, dy, nx, ny, nh, rx, ry, rh
-
-
-@numba.njit(cache=True, nogil=True)
-def binned_kde_kernel(
-    particles: NDArray, weights: NDArray, bandwidth: NDArray, queries: NDArray, out: NDArray
-) -> None:
-    """``log bel_bar`` ``(Q,)`` at ``queries`` ``(Q, 3)`` (module docstring); particles
-    ``(K, 3)`` with headings in ``[-pi, pi)``, weights ``(K,)`` summing to 1, ``bandwidth``
-    ``(3,)`` with a heading bandwidth of at most pi.
-
-    The convolved grid is needed only at the 8 nodes around each query: where the queries
-    are few against the grid's cells, only those nodes (and the sums they need) are computed,
-    with the same sums in the same order, so both ways give the same numbers."""
-    k = particles.shape[0]
-    # nodes at gx + i dx, gy + j dy, and heading -pi + (m + 1/2) dh
-    gx, gy, dx, dy, nx, ny, nh, rx, ry, rh = _kde_grid(particles, bandwidth)
-    dh = 2.0 * math.pi / nh
+    rh = math.ceil(TRUNCATION * bandwidth[2] / dh)
+    gx = x0 - rx * dx  # the grid's first node; nodes at gx + i dx, and heading -pi + (j + 1/2) dh
+    gy = y0 - ry * dy
     mass = np.zeros((nx, ny, nh))
     for i in range(k):  # linear binning
         ix, fx = _split((particles[i, 0] - gx) / dx)
@@ -276,35 +264,6 @@ def binned_kde_kernel(
         out[q] = math.log(acc) - log_cell if acc > 0.0 else -np.inf
 
 
-@dataclass(frozen=True, eq=False)
-class KernelSupport:
-    """Where the binned density of a set is positive: ``bel_bar(x) = 0`` unless some point
-    lies within ``reach`` of ``x`` along x and along y at once, and unless some point's
-    heading lies within ``heading_reach`` of ``x``'s (not necessarily the same point's).
-
-    Attributes:
-        points: ``(K, 3)`` the set's poses (m, m, rad).
-        reach: ``(reach_x, reach_y)`` (m, world axes).
-        heading_reach: rad; ``pi`` or more: every heading.
-    """
-
-    points: NDArray[np.float64]
-    reach: tuple[float, float]
-    heading_reach: float
-
-
-def kde_support(particles: ArrayLike, bandwidth: ArrayLike) -> KernelSupport:
-    """The support of :func:`kde_log_density` of ``particles`` ``(K, 3)`` with ``bandwidth``
-    ``(3,)``, whatever the weights: a query reads the 2 x 2 x 2 grid nodes around it, a
-    node's taps reach ``(rx, ry, rh)`` nodes, and a particle's mass lies on the 2 x 2 x 2
-    nodes around it, so a positive density needs a particle less than ``rx + 2`` cells away
-    along x and ``ry + 2`` along y, and one less than ``rh + 2`` cells away in heading."""
-    p = np.ascontiguousarray(particles, dtype=np.float64).reshape(-1, 3)
-    h = np.minimum(np.asarray(bandwidth, dtype=np.float64).reshape(3), BANDWIDTH_CAP)
-    _, _, dx, dy, _, _, nh, rx, ry, rh = _kde_grid(p, h)
-    return KernelSupport(p, ((rx + 2) * dx, (ry + 2) * dy), (rh + 2) * 2.0 * math.pi / nh)
-
-
 def kde_log_density(
     particles: ArrayLike, weights: ArrayLike, bandwidth: ArrayLike, queries: ArrayLike
 ) -> NDArray[np.float64]:
@@ -325,5 +284,5 @@ def kde_log_density(
         raise ValueError("kde_log_density: particles, weights and queries must be finite")
     p[:, 2] = (p[:, 2] + np.pi) % (2.0 * np.pi) - np.pi
     out = np.empty(qs.shape[0])
-    binned_kde_kernel(p, w, np.minimum(h, BANDWIDTH_CAP), qs, out)
+    binned_kde_kernel(p, w, np.minimum(h, np.array([np.inf, np.inf, np.pi])), qs, out)
     return out

@@ -84,14 +84,6 @@ def lattice_field_kernel(
     nh = headings.shape[0]
     n_beams = z.shape[0]
     threshold = max_range * (1.0 - MAX_READING_TOL)
-    # each lattice column's free rows lie in [first, stop): the rest is not summed
-    first = np.full(n_x, n_y, dtype=np.int64)
-    stop = np.zeros(n_x, dtype=np.int64)
-    for i in range(n_x):
-        for k in range(n_y):
-            if free[i, k]:
-                first[i] = min(first[i], k)
-                stop[i] = k + 1
     for h in numba.prange(nh):  # headings are independent: in parallel in the twin
         cols = np.empty(n_x, dtype=np.int64)
         rows = np.empty(n_y, dtype=np.int64)
@@ -111,7 +103,7 @@ def lattice_field_kernel(
                 rows[i] = int(v) + 1 if 0.0 <= v < ny_map else 0
             for i in range(n_x):
                 column = table[cols[i]]
-                for k in range(first[i], stop[i]):
+                for k in range(n_y):
                     acc[i, k] += column[rows[k]]
         for i in range(n_x):
             for k in range(n_y):

@@ -7,7 +7,6 @@ import pytest
 
 from active_loc.beliefs.lidar_dual import LidarDualProposal, update_with_scan
 from active_loc.beliefs.mcl import FreeSpace, MCLBelief, landmark_log_likelihood
-from active_loc.beliefs.particle_density import kde_log_density, kde_support
 from active_loc.maps import OccupancyGrid
 from active_loc.motion import UnicycleModel
 from active_loc.sensors.landmarks import LandmarkSensor, RangeBearingSensor
@@ -110,52 +109,6 @@ def test_lidar_dual_poses_weighted_by_their_density_reproduce_the_likelihood() -
     assert np.mean(np.exp(-log_q)) == pytest.approx(volume, rel=0.02)
 
 
-@pytest.mark.parametrize("yaw", [0.0, 0.6])
-def test_dual_poses_near_the_predicted_belief_cover_its_density(yaw) -> None:
-    """Given the support of a two-mode belief's kernel density, the lattice keeps the cells
-    and heading bins near it: every free pose with a positive density lies in one of them (so
-    ``q`` is positive there), the draws stay in them, and ``q`` is still the draws' density.
-    On a map turned by ``yaw``, the lattice turns with it."""
-    values = _room().values
-    grid = OccupancyGrid(values, 0.05, (1.0, -0.5, yaw))
-    sensor = LidarSensor(n_beams=16, fov=2 * np.pi, max_range=5.0)
-    dual = LidarDualProposal.build(grid, sensor, sensor.log_table(grid.distance_field()))
-    free = FreeSpace.from_grid(grid.values, grid.resolution, grid.origin)
-    rotation = np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
-    bin_width = 2 * np.pi / dual.scores(np.zeros(16))[1].shape[0]
-
-    def lattice_poses(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The lattice cell and heading bin of world poses."""
-        map_xy = (poses[:, :2] - np.array([1.0, -0.5])) @ rotation
-        cell = np.floor(map_xy / dual.cell_side).astype(int)
-        heading = np.floor(np.mod(poses[:, 2] - yaw, 2 * np.pi) / bin_width).astype(int)
-        return cell[:, 0], cell[:, 1], heading
-
-    rng = np.random.default_rng(2)
-    modes = [rng.normal(c, [0.1, 0.1, 0.05], (200, 3)) for c in ([1.0, 0.8, 0.5 + yaw],
-                                                                  [3.3, 2.5, -2.0 + yaw])]
-    particles = np.vstack(modes)
-    particles[:, :2] = particles[:, :2] @ rotation.T + np.array([1.0, -0.5])
-    weights = np.full(400, 1 / 400)
-    bandwidth = np.array([0.08, 0.08, 0.05])
-    support = kde_support(particles, bandwidth)
-    near, bins = dual.cells_near(support), dual.bins_near(support)
-    assert 0 < near.sum() < 0.7 * dual.free.sum()
-    assert 0 < bins.shape[0] < 18
-    near_bins = np.isin(np.arange(36), bins)
-    points = free.sample(400_000, rng)
-    positive = np.isfinite(kde_log_density(particles, weights, bandwidth, points))
-    assert positive.sum() > 100
-    i, j, h = lattice_poses(points[positive])
-    assert near[i, j].all() and near_bins[h].all()
-    z = sensor.measure(particles[0], grid.kernel_arrays(), rng)
-    poses, log_q = dual.draw(200_000, z, 0.1, rng, support)
-    i, j, h = lattice_poses(poses)
-    assert near[i, j].all() and near_bins[h].all()
-    volume = int(near.sum()) * dual.cell_side**2 * bins.shape[0] * bin_width
-    assert np.mean(np.exp(-log_q)) == pytest.approx(volume, rel=0.02)
-
-
 def test_mixture_update_on_a_grid_map_matches_the_brute_force_posterior() -> None:
     """A Gaussian prior in the open part of the room, one lidar update with most particles
     from the scan lattice: mean and spread are prior x p^a on a fine pose grid."""
@@ -180,10 +133,8 @@ def test_mixture_update_on_a_grid_map_matches_the_brute_force_posterior() -> Non
     w /= w.sum()
     mean = w @ pts
     std = np.sqrt(w @ (pts - mean) ** 2)
-    # the dual poses see the predicted belief through a kernel density, a little wider; over
-    # 12 seeds the mean's error is 0.012-0.016 rms per axis, and 0.10-0.15 on every axis for
-    # dual poses weighted without the predicted belief
-    np.testing.assert_allclose(belief.mean(), mean, atol=0.04)
+    # the dual poses see the predicted belief through a kernel density, a little wider
+    np.testing.assert_allclose(belief.mean(), mean, atol=0.03)
     np.testing.assert_allclose(np.sqrt(np.diag(belief.covariance())), std, rtol=0.1)
 
 

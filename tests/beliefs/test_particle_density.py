@@ -10,7 +10,6 @@ from active_loc.beliefs.particle_density import (
     _smooth_at_queries,
     _taps,
     kde_log_density,
-    kde_support,
     silverman_bandwidth,
 )
 
@@ -37,45 +36,6 @@ def _mixed_set(rng: np.random.Generator, k: int) -> tuple[np.ndarray, np.ndarray
     particles = np.vstack([spread, mode_a, mode_b])
     weights = rng.uniform(0.1, 1.0, k)
     return particles, weights / weights.sum()
-
-
-def _two_clusters(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Two tight clusters 4 m apart, so that most of the box between them has no density."""
-    particles = np.vstack([rng.normal([2.0, 3.0, 0.5], [0.1, 0.2, 0.1], (300, 3)),
-                           rng.normal([6.0, 1.0, -2.0], [0.3, 0.1, 0.2], (200, 3))])
-    weights = rng.uniform(0.1, 1.0, 500)
-    return particles, weights / weights.sum()
-
-
-@pytest.mark.parametrize(
-    ("make", "bandwidth"),
-    [(_two_clusters, (0.05, 0.05, 0.05)), (_two_clusters, (0.3, 0.2, 0.3)),
-     (lambda rng: _mixed_set(rng, 3000), (0.05, 0.05, 0.1))],  # the last grows its cells
-)
-def test_the_density_is_zero_outside_its_support(make, bandwidth) -> None:
-    """Every query with a positive density lies within ``reach`` of one particle along x and
-    y at once, and within ``heading_reach`` of one in heading; the support leaves out most of
-    the set's bounding box when it is clustered."""
-    rng = np.random.default_rng(4)
-    particles, weights = make(rng)
-    support = kde_support(particles, bandwidth)
-    lo, hi = particles[:, :2].min(axis=0) - 3.0, particles[:, :2].max(axis=0) + 3.0
-    queries = np.column_stack([rng.uniform(lo[0], hi[0], 20000), rng.uniform(lo[1], hi[1], 20000),
-                               rng.uniform(-np.pi, np.pi, 20000)])
-    near = particles[rng.integers(0, len(particles), 5000)] + rng.normal(0, 0.5, (5000, 3))
-    queries = np.vstack([queries, near])
-    positive = np.isfinite(kde_log_density(particles, weights, bandwidth, queries))
-    gap = np.abs(queries[:, None, :2] - particles[None, :, :2])
-    inside = np.any(np.all(gap < np.array(support.reach), axis=2), axis=1)
-    turn = np.abs(np.angle(np.exp(1j * (queries[:, None, 2] - particles[None, :, 2]))))
-    inside_heading = np.any(turn < support.heading_reach, axis=1)
-    assert positive.sum() > 1000
-    assert not np.any(positive & ~inside)
-    assert not np.any(positive & ~inside_heading)
-    if make is _two_clusters:
-        assert inside[:20000].mean() < 0.5
-    if make is _two_clusters and bandwidth[2] < 0.1:
-        assert inside_heading[:20000].mean() < 0.7
 
 
 @pytest.mark.parametrize("bandwidth", [(0.6, 0.6, 0.3), (1.5, 1.0, 0.8), (0.3, 0.3, 4.0)])

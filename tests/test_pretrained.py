@@ -18,6 +18,7 @@ MODELS = sorted(path.parent.name for path in PRETRAINED.glob("*/model.zip"))
 #: each model's check: the env kwargs of its test set, the episodes, the fewest successes
 CHECKS = {
     "maze7-flat-ppo": ({"size": 7, "observation": "flat", "test_set": 1000}, 40, 37),
+    "maze15-pooled-ppo": ({"size": 15, "test_set": 1000}, 40, 28),
 }
 
 
